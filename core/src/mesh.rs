@@ -1,0 +1,130 @@
+//! The triangle mesh that flows through the pipeline.
+
+use crate::error::InputError;
+
+/// An indexed triangle mesh: positions and counter-clockwise triangles.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Mesh {
+    pub positions: Vec<[f64; 3]>,
+    pub faces: Vec<[u32; 3]>,
+}
+
+impl Mesh {
+    pub fn new(positions: Vec<[f64; 3]>, faces: Vec<[u32; 3]>) -> Self {
+        Self { positions, faces }
+    }
+
+    /// Checks what every stage relies on: at least one face, indices in range, finite
+    /// coordinates.
+    pub fn validate(&self) -> Result<(), InputError> {
+        if self.faces.is_empty() {
+            return Err(InputError("mesh has no faces".into()));
+        }
+        if let Some(i) = self.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(InputError(format!("vertex {i} has a NaN or infinite coordinate")));
+        }
+        let n = self.positions.len() as u64;
+        if let Some(f) = self.faces.iter().position(|f| f.iter().any(|&v| v as u64 >= n)) {
+            return Err(InputError(format!(
+                "face {f} refers to a vertex beyond the {n} vertices of the mesh"
+            )));
+        }
+        Ok(())
+    }
+
+    /// Axis-aligned bounding box `(min, max)` of the positions; `None` when there are none.
+    pub fn bounds(&self) -> Option<([f64; 3], [f64; 3])> {
+        bounds(&self.positions)
+    }
+}
+
+/// Axis-aligned bounding box `(min, max)` of a point set; `None` when it is empty.
+pub fn bounds(points: &[[f64; 3]]) -> Option<([f64; 3], [f64; 3])> {
+    let first = *points.first()?;
+    Some(points.iter().fold((first, first), |(mut lo, mut hi), p| {
+        for k in 0..3 {
+            lo[k] = lo[k].min(p[k]);
+            hi[k] = hi[k].max(p[k]);
+        }
+        (lo, hi)
+    }))
+}
+
+#[inline]
+pub fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline]
+pub fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+#[inline]
+pub fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+#[inline]
+pub fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline]
+pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+#[inline]
+pub fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// `a / |a|`, or zero when `a` is (numerically) zero.
+#[inline]
+pub fn normalize(a: [f64; 3]) -> [f64; 3] {
+    let n = norm(a);
+    if n > 1e-300 { scale(a, 1.0 / n) } else { [0.0; 3] }
+}
+
+/// Area-weighted vertex normals (unit length; zero for isolated vertices).
+pub fn vertex_normals(positions: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    let mut acc = vec![[0.0f64; 3]; positions.len()];
+    for f in faces {
+        let [a, b, c] = f.map(|v| positions[v as usize]);
+        let n = cross(sub(b, a), sub(c, a));
+        for &v in f {
+            acc[v as usize] = add(acc[v as usize], n);
+        }
+    }
+    acc.into_iter().map(normalize).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tri() -> Mesh {
+        Mesh::new(vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]], vec![[0, 1, 2]])
+    }
+
+    #[test]
+    fn validate_accepts_a_triangle_and_rejects_bad_meshes() {
+        assert!(tri().validate().is_ok());
+        let mut m = tri();
+        m.faces[0][2] = 3;
+        assert!(m.validate().unwrap_err().0.contains("face 0"));
+        let mut m = tri();
+        m.positions[1][1] = f64::NAN;
+        assert!(m.validate().unwrap_err().0.contains("vertex 1"));
+        let m = Mesh::new(tri().positions, vec![]);
+        assert!(m.validate().is_err());
+    }
+
+    #[test]
+    fn normals_of_a_ccw_triangle_point_up() {
+        let m = tri();
+        let n = vertex_normals(&m.positions, &m.faces);
+        assert_eq!(n, vec![[0.0, 0.0, 1.0]; 3]);
+    }
+}
