@@ -1,1 +1,70 @@
-//! (in progress)
+//! Quantization of wavelet coefficients, one step size per level of detail.
+//!
+//! As in the V-DMC test model, one QP sets the scale `2^(16 - bits + (4 - QP) / 6)` of the
+//! coarsest level (coefficients in grid units), and each finer level's scale is that of the
+//! level above divided by [`LOD_SCALE_DIVISOR`]: coarse coefficients spread over many
+//! vertices through the inverse transform, so they are quantized more finely. Rounding has a
+//! dead zone: magnitudes are rounded down unless their fraction reaches `1 - ROUNDING_BIAS`.
+
+/// QPs the codec accepts.
+pub const QP_RANGE: std::ops::RangeInclusive<i32> = -24..=63;
+/// Ratio of the scales of two successive levels of detail.
+pub const LOD_SCALE_DIVISOR: f64 = 2.0;
+/// Added to the scaled magnitude before truncation (0.5 would be plain rounding).
+pub const ROUNDING_BIAS: f64 = 1.0 / 3.0;
+
+/// Scale (inverse step) of each level of detail for `qp` and position bit depth `bits`.
+pub fn lod_scales(qp: i32, bits: u32, lod_count: usize) -> Vec<f64> {
+    let top = 2f64.powf(16.0 - bits as f64 + (4.0 - qp as f64) / 6.0);
+    (0..lod_count).map(|l| top / LOD_SCALE_DIVISOR.powi(l as i32)).collect()
+}
+
+/// Quantizes one coefficient with a per-coefficient scale.
+#[inline]
+pub fn quantize(c: f64, scale: f64) -> i32 {
+    let m = (c.abs() * scale + ROUNDING_BIAS).floor().min(i32::MAX as f64 / 2.0) as i32;
+    if c < 0.0 { -m } else { m }
+}
+
+/// Inverse of [`quantize`].
+#[inline]
+pub fn dequantize(q: i32, scale: f64) -> f64 {
+    q as f64 / scale
+}
+
+/// Scale of vertex `v` given the level offsets `[0, base, ..., total]`.
+pub fn scale_of(v: usize, lod_offsets: &[usize], scales: &[f64]) -> f64 {
+    let level = lod_offsets[1..].partition_point(|&end| end <= v);
+    scales[level.min(scales.len() - 1)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scales_follow_the_test_model_formula() {
+        let s = lod_scales(4, 12, 3);
+        assert_eq!(s, vec![16.0, 8.0, 4.0]);
+        let s = lod_scales(10, 12, 1);
+        assert!((s[0] - 8.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn dead_zone_rounding_and_symmetry() {
+        assert_eq!(quantize(0.6, 1.0), 0);
+        assert_eq!(quantize(0.7, 1.0), 1);
+        assert_eq!(quantize(-0.7, 1.0), -1);
+        assert_eq!(quantize(2.5, 2.0), 5);
+        assert_eq!(dequantize(5, 2.0), 2.5);
+    }
+
+    #[test]
+    fn scale_of_finds_the_level() {
+        let offsets = [0, 4, 9, 25];
+        let scales = [4.0, 2.0, 1.0];
+        assert_eq!(scale_of(3, &offsets, &scales), 4.0);
+        assert_eq!(scale_of(4, &offsets, &scales), 2.0);
+        assert_eq!(scale_of(24, &offsets, &scales), 1.0);
+    }
+}
