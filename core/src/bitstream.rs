@@ -1,1 +1,307 @@
-//! (in progress)
+//! The container: a sequence header, then one unit per frame with its type, length and
+//! CRC-32. See `docs/bitstream.md` for the layout field by field.
+//!
+//! Reading never trusts a length or a count: each is checked against the bytes that are
+//! actually present before anything is allocated, and every error names the frame and the
+//! byte offset in the whole stream.
+
+use crate::error::DecodeError;
+use crate::grid::{Grid, BITS_RANGE};
+use crate::subdivide::Scheme;
+
+pub const MAGIC: &[u8; 4] = b"DMSH";
+pub const VERSION: u8 = 1;
+/// Size of the fixed part of a frame unit: type, payload length, CRC.
+pub const UNIT_OVERHEAD: usize = 1 + 4 + 4;
+/// Subdivision iterations the format allows (each multiplies the face count by four).
+pub const MAX_SUBDIV: u32 = 6;
+
+/// Everything the decoder needs before the first frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SequenceHeader {
+    pub frame_count: u32,
+    pub grid: Grid,
+    pub subdiv_iterations: u32,
+    pub scheme: Scheme,
+    /// 1: only the normal component of each displacement is coded; 3: all of (n, t, b).
+    pub components: u8,
+}
+
+/// Kind of a frame unit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FrameType {
+    Intra = 0,
+}
+
+/// One frame unit as found in the stream.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Unit<'a> {
+    pub frame_type: FrameType,
+    pub payload: &'a [u8],
+    /// Offset of the payload in the whole stream.
+    pub offset: u64,
+}
+
+/// Little-endian writer.
+#[derive(Default)]
+pub struct Writer {
+    pub bytes: Vec<u8>,
+}
+
+impl Writer {
+    pub fn u8(&mut self, v: u8) {
+        self.bytes.push(v);
+    }
+    pub fn u32(&mut self, v: u32) {
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    pub fn i32(&mut self, v: i32) {
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    pub fn f64(&mut self, v: f64) {
+        self.bytes.extend_from_slice(&v.to_le_bytes());
+    }
+    /// A length-prefixed block.
+    pub fn block(&mut self, data: &[u8]) {
+        self.u32(data.len() as u32);
+        self.bytes.extend_from_slice(data);
+    }
+}
+
+/// Bounds-checked little-endian reader that knows where its bytes sit in the stream.
+pub struct Reader<'a> {
+    data: &'a [u8],
+    pos: usize,
+    base: u64,
+    frame: Option<u32>,
+}
+
+impl<'a> Reader<'a> {
+    /// Reads `data`, which starts at byte `base` of the stream and belongs to `frame`.
+    pub fn new(data: &'a [u8], base: u64, frame: Option<u32>) -> Self {
+        Self { data, pos: 0, base, frame }
+    }
+
+    /// An error at the current position.
+    pub fn error(&self, reason: impl Into<String>) -> DecodeError {
+        DecodeError::new(self.frame, self.base + self.pos as u64, reason)
+    }
+
+    pub fn remaining(&self) -> usize {
+        self.data.len() - self.pos
+    }
+
+    pub fn bytes(&mut self, n: usize, what: &str) -> Result<&'a [u8], DecodeError> {
+        if n > self.remaining() {
+            return Err(self.error(format!("{what}: needs {n} bytes, {} left", self.remaining())));
+        }
+        let s = &self.data[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(s)
+    }
+
+    pub fn u8(&mut self, what: &str) -> Result<u8, DecodeError> {
+        Ok(self.bytes(1, what)?[0])
+    }
+    pub fn u32(&mut self, what: &str) -> Result<u32, DecodeError> {
+        Ok(u32::from_le_bytes(self.array(what)?))
+    }
+    pub fn i32(&mut self, what: &str) -> Result<i32, DecodeError> {
+        Ok(i32::from_le_bytes(self.array(what)?))
+    }
+    pub fn f64(&mut self, what: &str) -> Result<f64, DecodeError> {
+        Ok(f64::from_le_bytes(self.array(what)?))
+    }
+    fn array<const N: usize>(&mut self, what: &str) -> Result<[u8; N], DecodeError> {
+        let b = self.bytes(N, what)?;
+        let mut a = [0u8; N];
+        a.copy_from_slice(b);
+        Ok(a)
+    }
+    /// A length-prefixed block; returns its bytes and their offset in the stream.
+    pub fn block(&mut self, what: &str) -> Result<(&'a [u8], u64), DecodeError> {
+        let n = self.u32(what)? as usize;
+        let offset = self.base + self.pos as u64;
+        Ok((self.bytes(n, what)?, offset))
+    }
+}
+
+/// Serializes the sequence header (with its CRC).
+pub fn write_header(h: &SequenceHeader) -> Vec<u8> {
+    let mut w = Writer::default();
+    w.bytes.extend_from_slice(MAGIC);
+    w.u8(VERSION);
+    w.u32(h.frame_count);
+    for c in h.grid.origin {
+        w.f64(c);
+    }
+    w.f64(h.grid.step);
+    w.u8(h.grid.bits as u8);
+    w.u8(h.subdiv_iterations as u8);
+    w.u8(match h.scheme {
+        Scheme::Midpoint => 0,
+        Scheme::Loop => 1,
+    });
+    w.u8(h.components);
+    let crc = crc32fast::hash(&w.bytes);
+    w.u32(crc);
+    w.bytes
+}
+
+/// Parses and checks the sequence header; returns it and the offset of the first unit.
+pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> {
+    let mut r = Reader::new(data, 0, None);
+    if r.bytes(4, "magic")? != MAGIC {
+        return Err(DecodeError::new(None, 0, "not a dynmesh stream (bad magic)"));
+    }
+    let version = r.u8("version")?;
+    if version != VERSION {
+        return Err(r.error(format!("unsupported format version {version} (this decoder reads {VERSION})")));
+    }
+    let frame_count = r.u32("frame count")?;
+    let origin = [r.f64("origin")?, r.f64("origin")?, r.f64("origin")?];
+    let step = r.f64("step")?;
+    let bits = r.u8("position bits")? as u32;
+    let subdiv_iterations = r.u8("subdivision iterations")? as u32;
+    let scheme = match r.u8("subdivision scheme")? {
+        0 => Scheme::Midpoint,
+        1 => Scheme::Loop,
+        s => return Err(r.error(format!("unknown subdivision scheme {s}"))),
+    };
+    let components = r.u8("displacement components")?;
+    let end = data.len() - r.remaining();
+    let crc = r.u32("header CRC")?;
+    if crc != crc32fast::hash(&data[..end]) {
+        return Err(DecodeError::new(None, end as u64, "sequence header CRC mismatch"));
+    }
+    let header = SequenceHeader {
+        frame_count,
+        grid: Grid { origin, step, bits },
+        subdiv_iterations,
+        scheme,
+        components,
+    };
+    validate_header(&header).map_err(|e| DecodeError::new(None, 4, e))?;
+    Ok((header, end + 4))
+}
+
+fn validate_header(h: &SequenceHeader) -> Result<(), String> {
+    if !h.grid.origin.iter().all(|c| c.is_finite()) || !(h.grid.step.is_finite() && h.grid.step > 0.0) {
+        return Err("invalid position grid".into());
+    }
+    if !BITS_RANGE.contains(&h.grid.bits) {
+        return Err(format!("position bits {} out of range", h.grid.bits));
+    }
+    if h.subdiv_iterations > MAX_SUBDIV {
+        return Err(format!("{} subdivision iterations (at most {MAX_SUBDIV})", h.subdiv_iterations));
+    }
+    if h.components != 1 && h.components != 3 {
+        return Err(format!("{} displacement components (1 or 3)", h.components));
+    }
+    Ok(())
+}
+
+/// Serializes one frame unit.
+pub fn write_unit(frame_type: FrameType, payload: &[u8]) -> Vec<u8> {
+    let mut w = Writer::default();
+    w.u8(frame_type as u8);
+    w.block(payload);
+    let crc = crc32fast::hash(&w.bytes);
+    w.u32(crc);
+    w.bytes
+}
+
+/// Splits the stream after the header into frame units, checking lengths and CRCs.
+/// Returns exactly `header.frame_count` units or an error naming the first bad frame.
+pub fn read_units<'a>(data: &'a [u8], start: usize, frame_count: u32) -> Result<Vec<Unit<'a>>, DecodeError> {
+    // Each unit takes at least UNIT_OVERHEAD bytes, which bounds the allocation.
+    let plausible = (data.len().saturating_sub(start) / UNIT_OVERHEAD) as u32;
+    if frame_count > plausible {
+        return Err(DecodeError::new(None, 5, format!("header claims {frame_count} frames; the stream has room for at most {plausible}")));
+    }
+    let mut units = Vec::with_capacity(frame_count as usize);
+    let mut pos = start;
+    for f in 0..frame_count {
+        let (unit, next) = read_unit(data, pos, f)?;
+        units.push(unit);
+        pos = next;
+    }
+    if pos != data.len() {
+        return Err(DecodeError::new(None, pos as u64, format!("{} unexpected bytes after the last frame", data.len() - pos)));
+    }
+    Ok(units)
+}
+
+fn read_unit(data: &[u8], pos: usize, frame: u32) -> Result<(Unit<'_>, usize), DecodeError> {
+    let mut r = Reader::new(&data[pos..], pos as u64, Some(frame));
+    let t = r.u8("frame type")?;
+    let (payload, offset) = r.block("frame payload")?;
+    let end = pos + data[pos..].len() - r.remaining();
+    let crc = r.u32("frame CRC")?;
+    if crc != crc32fast::hash(&data[pos..end]) {
+        return Err(DecodeError::new(Some(frame), end as u64, "frame CRC mismatch (corrupted data)"));
+    }
+    let frame_type = match t {
+        0 => FrameType::Intra,
+        _ => return Err(DecodeError::new(Some(frame), pos as u64, format!("unknown frame type {t}"))),
+    };
+    Ok((Unit { frame_type, payload, offset }, end + 4))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn header() -> SequenceHeader {
+        SequenceHeader {
+            frame_count: 2,
+            grid: Grid { origin: [1.0, -2.0, 0.5], step: 0.01, bits: 12 },
+            subdiv_iterations: 3,
+            scheme: Scheme::Midpoint,
+            components: 1,
+        }
+    }
+
+    fn stream() -> Vec<u8> {
+        let mut s = write_header(&header());
+        s.extend(write_unit(FrameType::Intra, b"hello"));
+        s.extend(write_unit(FrameType::Intra, b""));
+        s
+    }
+
+    #[test]
+    fn header_and_units_round_trip() {
+        let s = stream();
+        let (h, start) = read_header(&s).unwrap();
+        assert_eq!(h, header());
+        let units = read_units(&s, start, h.frame_count).unwrap();
+        assert_eq!(units.len(), 2);
+        assert_eq!(units[0].payload, b"hello");
+        assert_eq!(&s[units[0].offset as usize..][..5], b"hello");
+    }
+
+    #[test]
+    fn every_truncation_and_flip_is_an_error() {
+        let s = stream();
+        for cut in 0..s.len() {
+            let r = read_header(&s[..cut]).and_then(|(h, st)| read_units(&s[..cut], st, h.frame_count));
+            assert!(r.is_err(), "cut at {cut}");
+        }
+        for i in 0..s.len() * 8 {
+            let mut t = s.clone();
+            t[i / 8] ^= 1 << (i % 8);
+            let r = read_header(&t).and_then(|(h, st)| read_units(&t, st, h.frame_count));
+            assert!(r.is_err(), "flip at bit {i}");
+        }
+    }
+
+    #[test]
+    fn a_huge_frame_count_is_refused_before_allocation() {
+        let mut h = header();
+        h.frame_count = u32::MAX;
+        let s = write_header(&h);
+        let (h, start) = read_header(&s).unwrap();
+        let e = read_units(&s, start, h.frame_count).unwrap_err();
+        assert!(e.reason.contains("room"), "{e}");
+    }
+}

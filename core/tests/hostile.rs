@@ -1,0 +1,102 @@
+//! Streams crafted past the CRC: the inner decoders must fail cleanly, never panic, and
+//! never produce more than the bounded output.
+
+use dynmesh::bitstream::{self, FrameType};
+use dynmesh::decoder;
+use dynmesh::encoder::{encode_intra, EncoderConfig};
+use dynmesh::mesh::Mesh;
+
+/// An octahedron refined by midpoint subdivision and pushed onto the unit sphere.
+fn ball() -> Mesh {
+    let p = vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
+    let f = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
+    let s = dynmesh::subdivide::subdivide(&p, &f, 2, dynmesh::subdivide::Scheme::Midpoint);
+    let pos = s.positions.iter().map(|&q| dynmesh::mesh::normalize(q)).collect();
+    Mesh::new(pos, s.faces)
+}
+
+fn stream(cfg: &EncoderConfig) -> Vec<u8> {
+    let m = ball();
+    let h = cfg.header(2, [-1.0; 3], [1.0; 3]);
+    let mut out = bitstream::write_header(&h);
+    for _ in 0..2 {
+        out.extend(encode_intra(&h, cfg, &m).unwrap().unit);
+    }
+    out
+}
+
+/// Recomputes the CRC of every frame unit so that corruption reaches the payload
+/// decoders; false when a corrupted length field makes the units unreadable.
+fn fix_crcs(data: &mut [u8]) -> bool {
+    let Ok((h, mut pos)) = bitstream::read_header(data) else { return false };
+    for _ in 0..h.frame_count {
+        let Some(len) = data.get(pos + 1..pos + 5) else { return false };
+        let end = pos + 5 + u32::from_le_bytes(len.try_into().unwrap()) as usize;
+        if end + 4 > data.len() {
+            return false;
+        }
+        let crc = crc32fast::hash(&data[pos..end]);
+        data[end..end + 4].copy_from_slice(&crc.to_le_bytes());
+        pos = end + 4;
+    }
+    true
+}
+
+fn decode_all(data: &[u8]) -> Result<usize, dynmesh::error::DecodeError> {
+    let s = decoder::open(data)?;
+    let mut vertices = 0;
+    for i in 0..s.units.len() {
+        vertices += decoder::decode_frame(&s, i as u32)?.positions.len();
+    }
+    Ok(vertices)
+}
+
+fn lcg(seed: &mut u64) -> usize {
+    *seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+    (*seed >> 33) as usize
+}
+
+#[test]
+fn clean_stream_decodes() {
+    let s = stream(&EncoderConfig { subdiv_iterations: 1, ..Default::default() });
+    assert!(decode_all(&s).unwrap() > 0);
+}
+
+#[test]
+fn payload_flips_behind_a_valid_crc_never_panic() {
+    let cfg = EncoderConfig { subdiv_iterations: 1, ..Default::default() };
+    let clean = stream(&cfg);
+    let (_, header_len) = bitstream::read_header(&clean).unwrap();
+    let mut seed = 11u64;
+    let mut errors = 0;
+    for _ in 0..3000 {
+        let mut d = clean.clone();
+        for _ in 0..1 + lcg(&mut seed) % 3 {
+            let i = header_len * 8 + lcg(&mut seed) % ((d.len() - header_len) * 8);
+            d[i / 8] ^= 1 << (i % 8);
+        }
+        if !fix_crcs(&mut d) {
+            continue;
+        }
+        match decode_all(&d) {
+            Ok(v) => assert!(v <= decoder::MAX_OUTPUT_FACES),
+            Err(e) => {
+                errors += 1;
+                assert!(e.to_string().contains("byte offset"));
+            }
+        }
+    }
+    assert!(errors > 100, "{errors}");
+}
+
+#[test]
+fn frame_types_other_than_intra_are_rejected() {
+    let mut d = stream(&EncoderConfig { subdiv_iterations: 1, ..Default::default() });
+    let (_, start) = bitstream::read_header(&d).unwrap();
+    d[start] = 7;
+    assert!(fix_crcs(&mut d));
+    let e = decode_all(&d).unwrap_err();
+    assert_eq!(e.frame, Some(0));
+    assert!(e.reason.contains("frame type"));
+    assert_eq!(FrameType::Intra as u8, 0);
+}
