@@ -1,6 +1,241 @@
+//! Python bindings: thin wrappers that move numpy arrays in and out of the core.
+//!
+//! Every function releases the GIL while the core works, so Python threads can encode
+//! frames side by side.
+
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+
+use dynmesh::bitstream::{FrameType, SequenceHeader, Unit};
+use dynmesh::decoder;
+use dynmesh::encoder::{self, EncoderConfig, FrameStats};
+use dynmesh::error::DecodeError as CoreDecodeError;
+use dynmesh::mesh::Mesh;
+use dynmesh::metrics;
+use dynmesh::subdivide::Scheme;
+
+create_exception!(_core, DecodeError, PyValueError, "A stream that cannot be decoded; args are (message, frame or None, byte offset).");
+
+fn decode_error(e: CoreDecodeError) -> PyErr {
+    DecodeError::new_err((e.to_string(), e.frame, e.offset))
+}
+
+fn positions_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 3]>> {
+    let v = a.as_array();
+    if v.ncols() != 3 {
+        return Err(PyValueError::new_err("positions must have shape (N, 3)"));
+    }
+    Ok(v.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect())
+}
+
+fn faces_of(a: &PyReadonlyArray2<i64>, vertex_count: usize) -> PyResult<Vec<[u32; 3]>> {
+    let v = a.as_array();
+    if v.ncols() != 3 {
+        return Err(PyValueError::new_err("faces must have shape (M, 3)"));
+    }
+    let mut out = Vec::with_capacity(v.nrows());
+    for (i, r) in v.rows().into_iter().enumerate() {
+        let f = [r[0], r[1], r[2]];
+        if f.iter().any(|&x| x < 0 || x as u64 >= vertex_count as u64) {
+            return Err(PyValueError::new_err(format!("face {i} refers to a vertex outside 0..{vertex_count}")));
+        }
+        out.push(f.map(|x| x as u32));
+    }
+    Ok(out)
+}
+
+fn mesh_of(positions: &PyReadonlyArray2<f64>, faces: &PyReadonlyArray2<i64>) -> PyResult<Mesh> {
+    let p = positions_of(positions)?;
+    let f = faces_of(faces, p.len())?;
+    Ok(Mesh::new(p, f))
+}
+
+type MeshArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>);
+
+fn arrays_of<'py>(py: Python<'py>, m: Mesh) -> MeshArrays<'py> {
+    let n = m.positions.len();
+    let p = Array2::from_shape_vec((n, 3), m.positions.into_iter().flatten().collect()).expect("shape");
+    let nf = m.faces.len();
+    let f = Array2::from_shape_vec((nf, 3), m.faces.into_iter().flatten().map(i64::from).collect()).expect("shape");
+    (p.into_pyarray(py), f.into_pyarray(py))
+}
+
+fn scheme_of(name: &str) -> PyResult<Scheme> {
+    match name {
+        "midpoint" => Ok(Scheme::Midpoint),
+        "loop" => Ok(Scheme::Loop),
+        _ => Err(PyValueError::new_err(format!("unknown subdivision scheme {name:?} (midpoint or loop)"))),
+    }
+}
+
+fn scheme_name(s: Scheme) -> &'static str {
+    match s {
+        Scheme::Midpoint => "midpoint",
+        Scheme::Loop => "loop",
+    }
+}
+
+fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("bytes", s.bytes)?;
+    d.set_item("base_bytes", s.base_bytes)?;
+    d.set_item("displacement_bytes", s.displacement_bytes)?;
+    d.set_item("base_vertices", s.base_vertices)?;
+    d.set_item("base_faces", s.base_faces)?;
+    d.set_item("output_vertices", s.output_vertices)?;
+    d.set_item("output_faces", s.output_faces)?;
+    d.set_item("seconds", s.seconds)?;
+    Ok(d)
+}
+
+fn header_dict<'py>(py: Python<'py>, h: &SequenceHeader) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("frame_count", h.frame_count)?;
+    d.set_item("origin", h.grid.origin.to_vec())?;
+    d.set_item("step", h.grid.step)?;
+    d.set_item("bits", h.grid.bits)?;
+    d.set_item("subdiv_iterations", h.subdiv_iterations)?;
+    d.set_item("scheme", scheme_name(h.scheme))?;
+    d.set_item("components", h.components)?;
+    Ok(d)
+}
+
+/// Encodes the frames of one sequence; create it with the sequence's bounding box.
+#[pyclass(module = "dynmesh._core")]
+struct Encoder {
+    header: SequenceHeader,
+    config: EncoderConfig,
+}
+
+#[pymethods]
+impl Encoder {
+    #[new]
+    #[pyo3(signature = (frame_count, box_min, box_max, qp, base_ratio, subdiv, scheme, bits, normal_only))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(frame_count: u32, box_min: [f64; 3], box_max: [f64; 3], qp: i32, base_ratio: f64, subdiv: u32, scheme: &str, bits: u32, normal_only: bool) -> PyResult<Self> {
+        let config = EncoderConfig { qp, base_ratio, subdiv_iterations: subdiv, scheme: scheme_of(scheme)?, bits, normal_only };
+        config.validate().map_err(|e| PyValueError::new_err(e.0))?;
+        if !(box_min.iter().chain(&box_max).all(|c| c.is_finite())) {
+            return Err(PyValueError::new_err("bounding box must be finite"));
+        }
+        Ok(Self { header: config.header(frame_count, box_min, box_max), config })
+    }
+
+    /// The serialized sequence header.
+    fn header_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        PyBytes::new(py, &dynmesh::bitstream::write_header(&self.header))
+    }
+
+    /// Encodes one frame; returns (unit bytes, stats dict, (positions, faces) of the reconstruction).
+    fn encode_frame<'py>(
+        &self,
+        py: Python<'py>,
+        positions: PyReadonlyArray2<'py, f64>,
+        faces: PyReadonlyArray2<'py, i64>,
+    ) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyDict>, MeshArrays<'py>)> {
+        let mesh = mesh_of(&positions, &faces)?;
+        let out = py
+            .allow_threads(|| encoder::encode_intra(&self.header, &self.config, &mesh))
+            .map_err(|e| PyValueError::new_err(e.0))?;
+        Ok((PyBytes::new(py, &out.unit), stats_dict(py, &out.stats)?, arrays_of(py, out.reconstruction)))
+    }
+}
+
+/// A parsed stream whose frames can be decoded in any order.
+#[pyclass(module = "dynmesh._core")]
+struct Decoder {
+    data: Vec<u8>,
+    header: SequenceHeader,
+    /// (type, payload start, payload length, unit length) per frame.
+    units: Vec<(FrameType, usize, usize, usize)>,
+}
+
+#[pymethods]
+impl Decoder {
+    #[new]
+    fn new(data: &[u8]) -> PyResult<Self> {
+        let stream = decoder::open(data).map_err(decode_error)?;
+        let units = stream
+            .units
+            .iter()
+            .map(|u| (u.frame_type, u.offset as usize, u.payload.len(), u.payload.len() + dynmesh::bitstream::UNIT_OVERHEAD))
+            .collect();
+        Ok(Self { data: data.to_vec(), header: stream.header, units })
+    }
+
+    #[getter]
+    fn frame_count(&self) -> usize {
+        self.units.len()
+    }
+
+    /// Sequence header fields.
+    fn header<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        header_dict(py, &self.header)
+    }
+
+    /// Per frame: type and byte sizes of the unit and its parts.
+    fn frame_info<'py>(&self, py: Python<'py>, index: usize) -> PyResult<Bound<'py, PyDict>> {
+        let &(t, start, len, unit_len) = self.units.get(index).ok_or_else(|| PyValueError::new_err("no such frame"))?;
+        let unit = Unit { frame_type: t, payload: &self.data[start..start + len], offset: start as u64 };
+        let p = decoder::read_intra_payload(&unit, index as u32).map_err(decode_error)?;
+        let d = PyDict::new(py);
+        d.set_item("type", "I")?;
+        d.set_item("bytes", unit_len)?;
+        d.set_item("qp", p.qp)?;
+        d.set_item("base_bytes", p.base.len())?;
+        d.set_item("displacement_bytes", p.coefficients.len())?;
+        Ok(d)
+    }
+
+    /// Decodes frame `index`; returns (positions, faces).
+    fn decode_frame<'py>(&self, py: Python<'py>, index: usize) -> PyResult<MeshArrays<'py>> {
+        let &(t, start, len, _) = self.units.get(index).ok_or_else(|| PyValueError::new_err(format!("no frame {index}")))?;
+        let unit = Unit { frame_type: t, payload: &self.data[start..start + len], offset: start as u64 };
+        let header = &self.header;
+        let mesh = py.allow_threads(|| decoder::decode_unit(header, &unit, index as u32)).map_err(decode_error)?;
+        Ok(arrays_of(py, mesh))
+    }
+}
+
+/// D1/D2 distortion between a reference and a decoded mesh, sampled on the grid over
+/// the box `[box_min, box_max]`. Returns (d1_mse, d2_mse, d1_psnr, d2_psnr).
+#[pyfunction]
+#[pyo3(signature = (ref_positions, ref_faces, dec_positions, dec_faces, box_min, box_max, peak, grid_size=1024))]
+#[allow(clippy::too_many_arguments)]
+fn mesh_distortion(
+    py: Python<'_>,
+    ref_positions: PyReadonlyArray2<'_, f64>,
+    ref_faces: PyReadonlyArray2<'_, i64>,
+    dec_positions: PyReadonlyArray2<'_, f64>,
+    dec_faces: PyReadonlyArray2<'_, i64>,
+    box_min: [f64; 3],
+    box_max: [f64; 3],
+    peak: f64,
+    grid_size: u32,
+) -> PyResult<(f64, f64, f64, f64)> {
+    let a = mesh_of(&ref_positions, &ref_faces)?;
+    let b = mesh_of(&dec_positions, &dec_faces)?;
+    if grid_size < 2 {
+        return Err(PyValueError::new_err("grid size must be at least 2"));
+    }
+    Ok(py.allow_threads(|| {
+        let grid = metrics::SamplingGrid::over_box(box_min, box_max, grid_size);
+        let pa = metrics::sample_grid(&a.positions, &a.faces, &grid);
+        let pb = metrics::sample_grid(&b.positions, &b.faces, &grid);
+        let d = metrics::distortion(&pa, &pb);
+        (d.d1_mse, d.d2_mse, metrics::psnr(d.d1_mse, peak), metrics::psnr(d.d2_mse, peak))
+    }))
+}
 
 #[pymodule]
-fn _core(_m: &Bound<'_, PyModule>) -> PyResult<()> {
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<Encoder>()?;
+    m.add_class::<Decoder>()?;
+    m.add_function(wrap_pyfunction!(mesh_distortion, m)?)?;
+    m.add("DecodeError", m.py().get_type::<DecodeError>())?;
     Ok(())
 }
