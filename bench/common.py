@@ -1,0 +1,47 @@
+"""Shared pieces of the benchmark scripts: machine description and the benchmarks page."""
+
+from __future__ import annotations
+
+import datetime
+import os
+import platform
+import re
+import sys
+from pathlib import Path
+
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
+SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+
+
+def machine() -> str:
+    cpu = platform.processor() or "unknown CPU"
+    try:
+        text = Path("/proc/cpuinfo").read_text()
+        cpu = re.search(r"model name\s*:\s*(.*)", text).group(1)
+    except (OSError, AttributeError):
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
+
+
+def command() -> str:
+    return "python " + " ".join([str(Path(sys.argv[0]).relative_to(Path.cwd())) if Path(sys.argv[0]).is_absolute() else sys.argv[0], *sys.argv[1:]])
+
+
+def write_section(name: str, body: str) -> None:
+    """Replaces (or appends) the section between the markers for ``name`` in docs/benchmarks.md."""
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    stamp = f"Command: `{command()}`  \nDate: {datetime.date.today().isoformat()}  \nMachine: {machine()}\n\n"
+    block = f"{start}\n{stamp}{body.rstrip()}\n{end}"
+    text = DOCS.read_text() if DOCS.exists() else "# Benchmarks\n\nEvery figure here was measured by a script in `bench/`; rerun the command to refresh its section.\n"
+    if start in text and end in text:
+        text = text[: text.index(start)] + block + text[text.index(end) + len(end):]
+    else:
+        text = text.rstrip() + f"\n\n## {name}\n\n{block}\n"
+    DOCS.write_text(text)
+
+
+def markdown_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
+    head = "| " + " | ".join(h for _, h, _ in columns) + " |"
+    rule = "|" + "|".join("---:" for _ in columns) + "|"
+    body = ["| " + " | ".join(format(r[k], f) for k, _, f in columns) + " |" for r in rows]
+    return "\n".join([head, rule, *body])

@@ -1,0 +1,119 @@
+"""The command line: each command end to end, JSON output, and clean failures."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from dynmesh.io import read_mesh, write_mesh
+
+from conftest import shared_sequence, wobbly_sequence
+
+
+def run(*args, check=True):
+    p = subprocess.run([sys.executable, "-m", "dynmesh", *map(str, args)], capture_output=True, text=True)
+    if check and p.returncode != 0:
+        raise AssertionError(f"exit {p.returncode}: {p.stderr}")
+    return p
+
+
+@pytest.fixture
+def frames_dir(tmp_path):
+    d = tmp_path / "in"
+    d.mkdir()
+    for i, m in enumerate(wobbly_sequence(3, 12, 16)):
+        write_mesh(d / f"f{i}.obj", m)
+    return d
+
+
+def test_encode_decode_info_metrics_round_trip(tmp_path, frames_dir):
+    stream = tmp_path / "s.dmsh"
+    enc = json.loads(run("encode", frames_dir, "-o", stream, "--qp", "20", "--json").stdout)
+    assert enc["bytes"] == stream.stat().st_size
+    assert [f["frame"] for f in enc["frames"]] == [0, 1, 2]
+    info = json.loads(run("info", stream, "--json").stdout)
+    assert info["header"]["frame_count"] == 3
+    out = tmp_path / "out"
+    run("decode", stream, "-o", out, "--format", "ply")
+    files = sorted(out.iterdir())
+    assert [f.name for f in files] == ["frame_0000.ply", "frame_0001.ply", "frame_0002.ply"]
+    assert read_mesh(files[0]).face_count > 0
+    m = json.loads(run("metrics", frames_dir, out, "--json").stdout)
+    assert len(m["frames"]) == 3 and m["d1_psnr"] > 50
+
+
+def test_human_output_has_a_per_frame_table(tmp_path, frames_dir):
+    out = run("encode", frames_dir, "-o", tmp_path / "s.dmsh", "-q").stdout
+    assert "base faces" in out and "Mbit/s" in out
+    assert len([l for l in out.splitlines() if l.strip().startswith(("0 ", "1 ", "2 "))]) == 3
+
+
+def test_start_and_count_select_frames(tmp_path, frames_dir):
+    enc = json.loads(run("encode", frames_dir, "-o", tmp_path / "s.dmsh", "--start", "1", "--count", "2", "--json").stdout)
+    assert [f["input"].endswith(n) for f, n in zip(enc["frames"], ["f1.obj", "f2.obj"])] == [True, True]
+
+
+def test_every_command_has_help():
+    for cmd in ["encode", "decode", "info", "metrics", "synth", "demo"]:
+        assert "usage" in run(cmd, "--help").stdout
+
+
+@pytest.mark.parametrize("args, message", [
+    (["encode", "missing_dir", "-o", "x.dmsh"], "missing_dir"),
+    (["info", "missing.dmsh"], "missing.dmsh"),
+])
+def test_missing_inputs_fail_with_a_message(tmp_path, args, message):
+    p = run(*args, check=False)
+    assert p.returncode == 1
+    assert message in p.stderr and "Traceback" not in p.stderr
+
+
+def test_bad_option_fails_cleanly_and_writes_nothing(tmp_path, frames_dir):
+    out = tmp_path / "s.dmsh"
+    p = run("encode", frames_dir, "-o", out, "--qp", "500", check=False)
+    assert p.returncode == 1 and "qp" in p.stderr and "Traceback" not in p.stderr
+    assert not out.exists() and list(tmp_path.glob("*.tmp")) == []
+
+
+def test_corrupt_stream_fails_naming_the_frame(tmp_path, frames_dir):
+    stream = tmp_path / "s.dmsh"
+    run("encode", frames_dir, "-o", stream, "-q")
+    data = bytearray(stream.read_bytes())
+    data[-10] ^= 0x40
+    stream.write_bytes(bytes(data))
+    p = run("decode", stream, "-o", tmp_path / "out", check=False)
+    assert p.returncode == 1
+    assert "frame 2" in p.stderr and "byte offset" in p.stderr
+
+
+def test_malformed_mesh_fails_naming_file_and_line(tmp_path):
+    d = tmp_path / "bad"
+    d.mkdir()
+    (d / "a.obj").write_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n")
+    p = run("encode", d, "-o", tmp_path / "s.dmsh", check=False)
+    assert p.returncode == 1 and "a.obj" in p.stderr and "4" in p.stderr
+
+
+def test_synth_and_demo_run(tmp_path):
+    run("synth", tmp_path / "syn", "--frames", "3", "--resolution", "24")
+    assert len(list((tmp_path / "syn").glob("frame_*.obj"))) == 3
+    demo = json.loads(run("demo", "--frames", "3", "--qps", "22", "34", "--workdir", tmp_path / "demo", "--json").stdout)
+    rates = demo["rates"]
+    assert rates[0]["d1_psnr"] > rates[1]["d1_psnr"] and rates[0]["bytes"] > rates[1]["bytes"]
+
+
+def test_shared_sequence_quality_rises_as_qp_falls(tmp_path):
+    folder = shared_sequence("basketball_player")
+    psnr = []
+    for qp in (34, 22):
+        stream = tmp_path / f"q{qp}.dmsh"
+        run("encode", folder, "-o", stream, "--count", "2", "--qp", qp, "-q")
+        run("decode", stream, "-o", tmp_path / f"d{qp}", "-q")
+        m = json.loads(run("metrics", folder / "basketball_player_fr0011.obj", tmp_path / f"d{qp}" / "frame_0000.obj",
+                           "--peak", "18.75", "--json").stdout)
+        psnr.append(m["d1_psnr"])
+        raw = sum(p.stat().st_size for p in sorted(folder.iterdir())[:2])
+        assert stream.stat().st_size * 50 < raw
+    assert psnr[1] > psnr[0] + 2

@@ -1,0 +1,403 @@
+"""Mesh file reading and writing: round trips, hand-written files, errors, atomic writes."""
+
+from __future__ import annotations
+
+import struct
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+from dynmesh import io as mesh_io
+from dynmesh.io import MeshError, MeshWarning, read_mesh, write_mesh
+from dynmesh.mesh import Mesh
+
+from conftest import SHARED_DATA, uv_sphere
+
+
+def write_text(path, text: str):
+    path.write_bytes(text.encode("utf-8"))
+    return path
+
+
+def read_quietly(path) -> Mesh:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # an unexpected warning fails the test
+        return read_mesh(path)
+
+
+def hard_positions(n: int = 500, seed: int = 0) -> np.ndarray:
+    """Positions whose decimal forms need all 17 digits, plus awkward special values."""
+    rng = np.random.default_rng(seed)
+    pos = rng.standard_normal((n, 3)) * 10.0 ** rng.integers(-30, 30, (n, 3))
+    pos[0] = [-0.0, 5e-324, 1.7976931348623157e308]
+    pos[1] = [0.1, 1 / 3, -2.0 / 3]
+    return pos
+
+
+def textured_mesh(tmp_path) -> Mesh:
+    """A sphere whose UVs have their own index list (a seam: 2 UVs for some positions)."""
+    sphere = uv_sphere(6, 8)
+    rng = np.random.default_rng(1)
+    uvs = rng.random((sphere.vertex_count + 7, 2))
+    uv_faces = (sphere.faces + 7 * (sphere.faces % 2)) % len(uvs)
+    texture = tmp_path / "skin.png"
+    texture.write_bytes(b"not really a png")
+    return Mesh(sphere.positions, sphere.faces, uvs, uv_faces, texture)
+
+
+def bits(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, np.float64).view(np.uint64)
+
+
+# --------------------------------------------------------------------------- round trips
+
+
+def test_obj_round_trip_is_bit_exact(tmp_path):
+    positions = hard_positions()
+    mesh = Mesh(positions, np.arange(len(positions) - len(positions) % 3).reshape(-1, 3))
+    write_mesh(tmp_path / "m.obj", mesh)
+    back = read_quietly(tmp_path / "m.obj")
+    assert np.array_equal(bits(back.positions), bits(positions))
+    assert np.array_equal(back.faces, mesh.faces)
+    assert back.uvs is None and back.uv_faces is None and back.texture is None
+
+
+def test_obj_round_trip_keeps_uv_indices_and_texture(tmp_path):
+    mesh = textured_mesh(tmp_path)
+    write_mesh(tmp_path / "m.obj", mesh)
+    assert "map_Kd skin.png" in (tmp_path / "m.mtl").read_text()
+    back = read_quietly(tmp_path / "m.obj")
+    assert np.array_equal(back.faces, mesh.faces)
+    assert np.array_equal(back.uv_faces, mesh.uv_faces)
+    assert not np.array_equal(back.uv_faces, back.faces)
+    assert np.array_equal(bits(back.uvs), bits(mesh.uvs))
+    assert back.texture == tmp_path / "skin.png"
+
+
+@pytest.mark.parametrize("ascii", [False, True])
+def test_ply_round_trip_is_exact(tmp_path, ascii):
+    positions = hard_positions(300)
+    mesh = Mesh(positions, np.arange(300).reshape(-1, 3)[::-1])
+    write_mesh(tmp_path / "m.ply", mesh, ascii=ascii)
+    assert (tmp_path / "m.ply").read_bytes().startswith(b"ply\nformat " + (b"ascii" if ascii else b"binary_little_endian"))
+    back = read_quietly(tmp_path / "m.ply")
+    assert np.array_equal(bits(back.positions), bits(positions))
+    assert np.array_equal(back.faces, mesh.faces)
+
+
+@pytest.mark.parametrize("ascii", [False, True])
+def test_ply_round_trip_keeps_per_vertex_and_per_corner_uvs(tmp_path, ascii):
+    sphere = uv_sphere(5, 7)
+    per_vertex = Mesh(sphere.positions, sphere.faces, sphere.positions[:, :2] * 0.5 + 0.5, sphere.faces)
+    write_mesh(tmp_path / "v.ply", per_vertex, ascii=ascii)
+    back = read_quietly(tmp_path / "v.ply")
+    assert np.array_equal(back.uvs, per_vertex.uvs) and np.array_equal(back.uv_faces, back.faces)
+
+    seam = textured_mesh(tmp_path)
+    write_mesh(tmp_path / "c.ply", seam, ascii=ascii)
+    back = read_quietly(tmp_path / "c.ply")
+    assert np.array_equal(back.faces, seam.faces)
+    assert np.array_equal(back.uvs[back.uv_faces], seam.uvs[seam.uv_faces])  # same UV at every corner
+    assert back.texture == tmp_path / "skin.png"
+
+
+def test_big_files_round_trip_in_every_format(tmp_path):
+    sphere = uv_sphere(80, 120)  # more rows than one write chunk holds
+    for name, ascii in [("a.obj", False), ("b.ply", False), ("c.ply", True)]:
+        write_mesh(tmp_path / name, sphere, ascii=ascii)
+        back = read_quietly(tmp_path / name)
+        assert np.array_equal(back.positions, sphere.positions) and np.array_equal(back.faces, sphere.faces)
+
+
+# --------------------------------------------------------------------------- hand-written OBJ
+
+CUBE_QUADS = """# a cube made of quads
+v 0 0 0
+v 1 0 0
+v 1 1 0
+v 0 1 0
+v 0 0 1
+v 1 0 1
+v 1 1 1
+v 0 1 1
+f 1 4 3 2
+f 5 6 7 8
+f 1 2 6 5
+f 2 3 7 6
+f 3 4 8 7
+f 4 1 5 8
+"""
+
+
+def test_quads_are_fan_triangulated_with_one_warning(tmp_path):
+    path = write_text(tmp_path / "cube.obj", CUBE_QUADS + "f 1 2 3 4 5\n")
+    with pytest.warns(MeshWarning) as caught:
+        mesh = read_mesh(path)
+    assert len(caught) == 1
+    assert "7 polygon" in str(caught[0].message) and str(path) in str(caught[0].message)
+    assert mesh.face_count == 6 * 2 + 3
+    assert mesh.faces[:2].tolist() == [[0, 3, 2], [0, 2, 1]]
+    assert mesh.faces[-3:].tolist() == [[0, 1, 2], [0, 2, 3], [0, 3, 4]]
+
+
+def test_negative_indices_count_back_from_the_face_line(tmp_path):
+    path = write_text(tmp_path / "neg.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 0 0 1\nf -4 -1 -2\n")
+    mesh = read_quietly(path)
+    assert mesh.faces.tolist() == [[0, 1, 2], [0, 3, 2]]
+
+
+def test_all_face_corner_forms_agree(tmp_path):
+    head = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nvt 0 0\nvt 1 0\nvt 0 1\nvt 1 1\nvn 0 0 1\n"
+    plain = read_quietly(write_text(tmp_path / "a.obj", head + "f 1 2 3\nf 1 3 4\n"))
+    normals = read_quietly(write_text(tmp_path / "b.obj", head + "f 1//1 2//1 3//1\nf 1//1 3//1 4//1\n"))
+    full = read_quietly(write_text(tmp_path / "c.obj", head + "f 1/4/1 2/3/1 3/2/1\nf 1/4/1 3/2/1 4/1/1\n"))
+    mixed = read_quietly(write_text(tmp_path / "d.obj", head + "f 1/4 2/3/1 3/2/1\nf 1/4/1 3/2 4/1\n"))
+    assert plain.faces.tolist() == normals.faces.tolist() == full.faces.tolist() == [[0, 1, 2], [0, 2, 3]]
+    assert normals.uvs is None
+    assert full.uv_faces.tolist() == mixed.uv_faces.tolist() == [[3, 2, 1], [3, 1, 0]]
+    assert np.array_equal(mixed.faces, full.faces)
+
+
+def test_extra_vertex_values_comments_crlf_and_odd_spacing_are_tolerated(tmp_path):
+    text = "# colours after xyz\r\nv 0 0 0 1 0 0\r\n  v\t1 0 0 0.5 0.5 0.5\r\nv 0 1 0\r\n\r\no thing\r\ng group\r\ns 1\r\nf 1 2 3\r\n"
+    mesh = read_quietly(write_text(tmp_path / "odd.obj", text))
+    assert mesh.positions.tolist() == [[0, 0, 0], [1, 0, 0], [0, 1, 0]]
+    assert mesh.faces.tolist() == [[0, 1, 2]]
+
+
+def test_inline_comments_and_line_continuations_give_the_same_mesh(tmp_path):
+    sphere = uv_sphere(6, 8)
+    write_mesh(tmp_path / "plain.obj", sphere)
+    lines = (tmp_path / "plain.obj").read_text().split("\n")
+    first_v = next(i for i, line in enumerate(lines) if line.startswith("v "))
+    first_f = next(i for i, line in enumerate(lines) if line.startswith("f "))
+    lines[first_v] += "  # an inline comment"
+    lines[first_f] = lines[first_f].replace("f ", "f \\\n", 1)  # a continued line
+    slow = read_quietly(write_text(tmp_path / "odd.obj", "\n".join(lines)))
+    assert np.array_equal(slow.positions, sphere.positions) and np.array_equal(slow.faces, sphere.faces)
+
+
+def test_texture_of_the_used_material_is_resolved_relative_to_the_mtl(tmp_path):
+    (tmp_path / "materials" / "images").mkdir(parents=True)
+    write_text(tmp_path / "materials" / "lib.mtl",
+               "newmtl skin\nKd 1 1 1\nmap_Kd images/skin.png\n\nnewmtl cloth\nmap_Kd -s 1 1 1 -bm 0.5 images/cloth.png\n")
+    (tmp_path / "materials" / "images" / "cloth.png").write_bytes(b"x")
+    path = write_text(tmp_path / "m.obj", "mtllib materials/lib.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nusemtl cloth\nf 1/1 2/1 3/1\n")
+    mesh = read_quietly(path)
+    assert mesh.texture == tmp_path / "materials" / "images" / "cloth.png"
+    assert mesh.uv_faces.tolist() == [[0, 0, 0]]
+
+
+def test_missing_material_library_or_texture_is_a_warning(tmp_path):
+    body = "v 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\n"
+    with pytest.warns(MeshWarning, match="nowhere.mtl"):
+        mesh = read_mesh(write_text(tmp_path / "a.obj", "mtllib nowhere.mtl\n" + body))
+    assert mesh.texture is None and mesh.face_count == 1
+    write_text(tmp_path / "b.mtl", "newmtl a\nmap_Kd gone.png\n")
+    with pytest.warns(MeshWarning, match="gone.png"):
+        mesh = read_mesh(write_text(tmp_path / "b.obj", "mtllib b.mtl\n" + body))
+    assert mesh.texture == tmp_path / "gone.png"
+
+
+# --------------------------------------------------------------------------- hand-written PLY
+
+def ply_header(fmt: str, nv: int, nf: int, vertex_props: str, face_prop: str) -> bytes:
+    return (f"ply\nformat {fmt} 1.0\ncomment hand made\nelement vertex {nv}\n{vertex_props}"
+            f"element face {nf}\n{face_prop}\nend_header\n").encode()
+
+
+def test_big_endian_ply_with_odd_types_and_quads(tmp_path):
+    props = "property float x\nproperty float y\nproperty float z\nproperty uchar red\nproperty float s\nproperty float t\n"
+    header = ply_header("binary_big_endian", 4, 2, props, "property list ushort uint vertex_index")
+    body = b"".join(struct.pack(">fffBff", *p, 7, p[0], p[1]) for p in [(0, 0, 0), (1, 0, 0), (1, 1, 0), (0, 1, 0)])
+    body += struct.pack(">HIIII", 4, 0, 1, 2, 3) + struct.pack(">HIII", 3, 2, 1, 0)
+    path = tmp_path / "be.ply"
+    path.write_bytes(header + body)
+    with pytest.warns(MeshWarning, match="1 polygon"):
+        mesh = read_mesh(path)
+    assert mesh.positions.tolist() == [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]]
+    assert mesh.faces.tolist() == [[0, 1, 2], [0, 2, 3], [2, 1, 0]]
+    assert np.array_equal(mesh.uvs, mesh.positions[:, :2]) and np.array_equal(mesh.uv_faces, mesh.faces)
+
+
+def test_ascii_ply_with_mixed_polygons_and_extra_elements(tmp_path):
+    text = ("ply\nformat ascii 1.0\nelement vertex 5\nproperty double x\nproperty double y\nproperty double z\n"
+            "element face 2\nproperty uchar flags\nproperty list uchar int vertex_indices\n"
+            "element edge 1\nproperty int a\nproperty int b\nend_header\n"
+            "0 0 0\n1 0 0\n1 1 0\n\n0 1 0\n0 0 1\n9 4 0 1 2 3\n9 3 0 1 4\n0 1\n")
+    with pytest.warns(MeshWarning):
+        mesh = read_mesh(write_text(tmp_path / "a.ply", text))
+    assert mesh.faces.tolist() == [[0, 1, 2], [0, 2, 3], [0, 1, 4]]
+
+
+# --------------------------------------------------------------------------- errors
+
+TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
+
+
+@pytest.mark.parametrize("text, line, fragment", [
+    (TRIANGLE + "v 1 x 3\nf 1 2 3\n", 4, "bad number"),
+    (TRIANGLE + "f 1 2 4\n", 4, "out of range"),
+    (TRIANGLE + "f 1 2 0\n", 4, "is 0"),
+    (TRIANGLE + "f -1 -2 -4\n", 4, "out of range"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2 3.5\n", 5, "bad index"),
+    (TRIANGLE + "f 1 2\n", 4, "at least 3 corners"),
+    ("v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", 2, "not finite"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1e999 0\nf 1 2 3\n", 3, "not finite"),
+    (TRIANGLE + "vt 0 0\nf 1/1 2/1 3/2\n", 5, "texture index"),
+    (TRIANGLE + "v 1 2\nf 1 2 3\n", 4, "needs at least 3 numbers"),
+])
+def test_obj_errors_name_file_and_line(tmp_path, text, line, fragment):
+    path = write_text(tmp_path / "bad.obj", text)
+    with pytest.raises(MeshError) as e:
+        read_mesh(path)
+    assert e.value.line == line
+    assert str(path) in str(e.value) and f"line {line}" in str(e.value) and fragment in str(e.value)
+
+
+def test_error_line_is_exact_deep_in_a_big_file(tmp_path):
+    sphere = uv_sphere(40, 60)
+    write_mesh(tmp_path / "big.obj", sphere)
+    lines = (tmp_path / "big.obj").read_text().split("\n")
+    lines[1500] = "v 0.5 0.25 0.5.5"
+    with pytest.raises(MeshError) as e:
+        read_mesh(write_text(tmp_path / "bad.obj", "\n".join(lines)))
+    assert e.value.line == 1501 and "0.5.5" in str(e.value)
+
+
+@pytest.mark.parametrize("name, content, fragment", [
+    ("none.obj", None, "cannot read"),
+    ("mesh.stl", "solid x", "unknown mesh format"),
+    ("empty.obj", TRIANGLE, "no faces"),
+    ("empty.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                  "property float z\nend_header\n0 0 0\n", "no faces"),
+])
+def test_file_level_errors_name_the_file(tmp_path, name, content, fragment):
+    path = tmp_path / name
+    if content is not None:
+        write_text(path, content)
+    with pytest.raises(MeshError, match=fragment) as e:
+        read_mesh(path)
+    assert str(path) in str(e.value) and e.value.line is None
+
+
+@pytest.mark.parametrize("header, line", [
+    ("plx\nformat ascii 1.0\nend_header\n", 1),
+    ("ply\nformat ascii 1.0\nelement vertex 3\nproperty floaty x\nend_header\n", 4),
+    ("ply\nformat ascii 1.0\nelement vertex three\nend_header\n", 3),
+    ("ply\nformat ascii 1.0\nelement face 1\nproperty list float int vertex_indices\nend_header\n", 4),
+    ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\n", None),
+])
+def test_bad_ply_header_is_an_error_with_its_line(tmp_path, header, line):
+    path = write_text(tmp_path / "bad.ply", header)
+    with pytest.raises(MeshError, match="PLY") as e:
+        read_mesh(path)
+    assert e.value.line == line and str(path) in str(e.value)
+
+
+@pytest.mark.parametrize("body, line, fragment", [
+    ("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1 3\n", 15, "out of range"),
+    ("0 0 0\n1 0 oops\n0 1 0\n3 0 1 2\n3 0 1 2\n", 12, "bad number"),
+    ("0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n3 0 1\n", 15, "values, expected"),
+    ("0 0 0\n1 0 inf\n0 1 0\n3 0 1 2\n3 0 1 2\n", 12, "not finite"),
+])
+def test_ascii_ply_errors_name_the_line(tmp_path, body, line, fragment):
+    header = ply_header("ascii", 3, 2, "property float x\nproperty float y\nproperty float z\n", "property list uchar int vertex_indices")
+    path = tmp_path / "bad.ply"
+    path.write_bytes(header + body.encode())
+    with pytest.raises(MeshError, match=fragment) as e:
+        read_mesh(path)
+    assert e.value.line == line and f"line {line}" in str(e.value)
+
+
+def test_every_truncation_of_a_binary_ply_is_an_error(tmp_path):
+    sphere = uv_sphere(4, 5)
+    write_mesh(tmp_path / "full.ply", sphere)
+    data = (tmp_path / "full.ply").read_bytes()
+    body = data.index(b"end_header\n") + len(b"end_header\n")
+    for cut in range(body, len(data), 7):
+        (tmp_path / "cut.ply").write_bytes(data[:cut])
+        with pytest.raises(MeshError, match="truncated binary PLY"):
+            read_mesh(tmp_path / "cut.ply")
+
+
+def test_truncated_ragged_binary_ply_is_an_error(tmp_path):
+    header = ply_header("binary_little_endian", 3, 2, "property float x\nproperty float y\nproperty float z\n", "property list uchar int vertex_indices")
+    body = struct.pack("<9f", 0, 0, 0, 1, 0, 0, 0, 1, 0) + struct.pack("<B3i", 3, 0, 1, 2) + struct.pack("<B2i", 4, 0, 1)
+    (tmp_path / "t.ply").write_bytes(header + body)
+    with pytest.raises(MeshError, match="truncated binary PLY.*face"):
+        read_mesh(tmp_path / "t.ply")
+
+
+def test_binary_ply_index_error_names_the_face(tmp_path):
+    header = ply_header("binary_little_endian", 3, 1, "property float x\nproperty float y\nproperty float z\n", "property list uchar int vertex_indices")
+    (tmp_path / "i.ply").write_bytes(header + struct.pack("<9f", *range(9)) + struct.pack("<B3i", 3, 0, 1, 3))
+    with pytest.raises(MeshError, match="face 0: vertex index 3 is out of range"):
+        read_mesh(tmp_path / "i.ply")
+
+
+def test_mesh_errors_survive_pickling():
+    import pickle
+
+    error = pickle.loads(pickle.dumps(MeshError("a.obj", "bad number", 3)))
+    assert isinstance(error, MeshError) and error.line == 3 and str(error) == "a.obj: line 3: bad number"
+
+
+# --------------------------------------------------------------------------- atomic writes
+
+
+def test_write_leaves_no_temporary_file(tmp_path):
+    for name in ("a.obj", "b.ply"):
+        write_mesh(tmp_path / name, textured_mesh(tmp_path))
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.mtl", "a.obj", "b.ply", "skin.png"]
+
+
+def test_failed_write_keeps_the_old_file_and_cleans_up(tmp_path, monkeypatch):
+    target = tmp_path / "m.obj"
+    write_mesh(target, uv_sphere(4, 5))
+    before = target.read_bytes()
+    written = []
+
+    def failing_faces(*args):
+        written.extend(p.stat().st_size for p in tmp_path.iterdir() if p.name.endswith(".tmp"))
+        raise RuntimeError("disk on fire")
+
+    monkeypatch.setattr(mesh_io, "_obj_face_text", failing_faces)
+    with pytest.raises(RuntimeError, match="disk on fire"):
+        write_mesh(target, uv_sphere(40, 60))  # big enough for the vertices to reach the disk
+    assert written and written[0] > 0  # the failure really came mid-write, vertices already out
+    assert target.read_bytes() == before
+    assert [p.name for p in tmp_path.iterdir()] == ["m.obj"]
+
+
+def test_invalid_mesh_is_refused_before_anything_is_written(tmp_path):
+    bad = Mesh(np.zeros((3, 3)), np.array([[0, 1, 3]]))
+    with pytest.raises(MeshError, match="out of range"):
+        write_mesh(tmp_path / "bad.ply", bad)
+    with pytest.raises(MeshError, match="non-finite"):
+        write_mesh(tmp_path / "bad.obj", Mesh(np.full((3, 3), np.nan), np.array([[0, 1, 2]])))
+    with pytest.raises(MeshError, match="unknown mesh format"):
+        write_mesh(tmp_path / "bad.off", uv_sphere(4, 5))
+    assert list(tmp_path.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- real data
+
+
+def test_reads_the_shared_textured_basketball_frame():
+    path = SHARED_DATA / "basketball_textured" / "basketball_player_00000001.obj"
+    if not path.is_file():
+        pytest.skip(f"shared data not present ({path})")
+    start = time.perf_counter()
+    mesh = read_quietly(path)
+    print(f"\nread {path.name}: {mesh.vertex_count} vertices, {mesh.face_count} faces in {time.perf_counter() - start:.3f} s")
+    assert mesh.uvs is not None and mesh.uv_faces.shape == mesh.faces.shape
+    assert mesh.texture == path.with_suffix(".png") and mesh.texture.is_file()
+    # This export already splits positions along UV seams, so every corner's vt index
+    # equals its v index: check the UV indices against the file itself instead.
+    corners = [c.split("/") for line in path.read_text().splitlines() if line.startswith("f ") for c in line.split()[1:]]
+    assert np.array_equal(mesh.uv_faces.reshape(-1), [int(c[1]) - 1 for c in corners])
+    assert np.array_equal(mesh.faces.reshape(-1), [int(c[0]) - 1 for c in corners])
+    assert len(np.unique(mesh.positions, axis=0)) < mesh.vertex_count  # seam copies are kept
