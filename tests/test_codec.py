@@ -18,7 +18,7 @@ def test_decoder_reproduces_the_encoder_reconstruction_bit_for_bit(sequence):
         assert np.array_equal(rec.positions.view(np.uint64), dec.positions.view(np.uint64))
 
 
-@pytest.mark.parametrize("options", [dict(scheme="loop"), dict(normal_only=False), dict(subdiv=0), dict(bits=16, subdiv=2)])
+@pytest.mark.parametrize("options", [dict(scheme="loop"), dict(normal_only=False), dict(subdiv=0), dict(bits=16, subdiv=2), dict(base_bits=8), dict(bits=11, base_bits=11)])
 def test_round_trip_holds_for_every_option(options, sequence):
     result = dynmesh.encode_frames(sequence[:2], keep_reconstructions=True, **options)
     for rec, dec in zip(result.reconstructions, dynmesh.decode(result.data)):
@@ -66,12 +66,13 @@ def test_info_reports_header_and_frame_sizes(sequence):
     i = dynmesh.info(data)
     assert i["header"]["frame_count"] == len(sequence)
     assert i["header"]["bits"] == 11
+    assert i["header"]["base_bits"] == dynmesh.DEFAULTS["base_bits"]
     assert [f["qp"] for f in i["frames"]] == [30] * len(sequence)
     header_bytes = len(data) - sum(f["bytes"] for f in i["frames"])
     assert 0 < header_bytes < 64
 
 
-@pytest.mark.parametrize("options", [dict(qp=200), dict(base_ratio=0), dict(base_ratio=1.5), dict(subdiv=9), dict(bits=3), dict(scheme="cubic")])
+@pytest.mark.parametrize("options", [dict(qp=200), dict(base_ratio=0), dict(base_ratio=1.5), dict(subdiv=9), dict(bits=3), dict(base_bits=13), dict(bits=10, base_bits=11), dict(scheme="cubic")])
 def test_bad_options_raise_value_error(options, sphere):
     with pytest.raises(ValueError):
         dynmesh.encode([sphere], **options)

@@ -98,6 +98,7 @@ fn header_dict<'py>(py: Python<'py>, h: &SequenceHeader) -> PyResult<Bound<'py, 
     d.set_item("origin", h.grid.origin.to_vec())?;
     d.set_item("step", h.grid.step)?;
     d.set_item("bits", h.grid.bits)?;
+    d.set_item("base_bits", h.base_bits)?;
     d.set_item("subdiv_iterations", h.subdiv_iterations)?;
     d.set_item("scheme", scheme_name(h.scheme))?;
     d.set_item("components", h.components)?;
@@ -114,10 +115,13 @@ struct Encoder {
 #[pymethods]
 impl Encoder {
     #[new]
-    #[pyo3(signature = (frame_count, box_min, box_max, qp, base_ratio, subdiv, scheme, bits, normal_only))]
+    #[pyo3(signature = (frame_count, box_min, box_max, *, qp, base_ratio, subdiv, scheme, bits, base_bits, normal_only))]
     #[allow(clippy::too_many_arguments)]
-    fn new(frame_count: u32, box_min: [f64; 3], box_max: [f64; 3], qp: i32, base_ratio: f64, subdiv: u32, scheme: &str, bits: u32, normal_only: bool) -> PyResult<Self> {
-        let config = EncoderConfig { qp, base_ratio, subdiv_iterations: subdiv, scheme: scheme_of(scheme)?, bits, normal_only };
+    fn new(
+        frame_count: u32, box_min: [f64; 3], box_max: [f64; 3], qp: i32, base_ratio: f64, subdiv: u32, scheme: &str, bits: u32,
+        base_bits: u32, normal_only: bool,
+    ) -> PyResult<Self> {
+        let config = EncoderConfig { qp, base_ratio, subdiv_iterations: subdiv, scheme: scheme_of(scheme)?, bits, base_bits, normal_only };
         config.validate().map_err(|e| PyValueError::new_err(e.0))?;
         if !(box_min.iter().chain(&box_max).all(|c| c.is_finite())) {
             return Err(PyValueError::new_err("bounding box must be finite"));
@@ -231,8 +235,24 @@ fn mesh_distortion(
     }))
 }
 
+/// The encoder's default options, keyed as the Python API names them.
+#[pyfunction]
+fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let c = EncoderConfig::default();
+    let d = PyDict::new(py);
+    d.set_item("qp", c.qp)?;
+    d.set_item("base_ratio", c.base_ratio)?;
+    d.set_item("subdiv", c.subdiv_iterations)?;
+    d.set_item("scheme", scheme_name(c.scheme))?;
+    d.set_item("bits", c.bits)?;
+    d.set_item("base_bits", c.base_bits)?;
+    d.set_item("normal_only", c.normal_only)?;
+    Ok(d)
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(default_options, m)?)?;
     m.add_class::<Encoder>()?;
     m.add_class::<Decoder>()?;
     m.add_function(wrap_pyfunction!(mesh_distortion, m)?)?;

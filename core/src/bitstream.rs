@@ -21,6 +21,9 @@ pub const MAX_SUBDIV: u32 = 6;
 pub struct SequenceHeader {
     pub frame_count: u32,
     pub grid: Grid,
+    /// Bit depth of the base mesh positions: a coarser grid of `2^base_bits` steps whose
+    /// points are every `2^(grid.bits - base_bits)`-th point of `grid`.
+    pub base_bits: u32,
     pub subdiv_iterations: u32,
     pub scheme: Scheme,
     /// 1: only the normal component of each displacement is coded; 3: all of (n, t, b).
@@ -137,6 +140,7 @@ pub fn write_header(h: &SequenceHeader) -> Vec<u8> {
     }
     w.f64(h.grid.step);
     w.u8(h.grid.bits as u8);
+    w.u8(h.base_bits as u8);
     w.u8(h.subdiv_iterations as u8);
     w.u8(match h.scheme {
         Scheme::Midpoint => 0,
@@ -162,6 +166,7 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
     let origin = [r.f64("origin")?, r.f64("origin")?, r.f64("origin")?];
     let step = r.f64("step")?;
     let bits = r.u8("position bits")? as u32;
+    let base_bits = r.u8("base mesh position bits")? as u32;
     let subdiv_iterations = r.u8("subdivision iterations")? as u32;
     let scheme = match r.u8("subdivision scheme")? {
         0 => Scheme::Midpoint,
@@ -177,6 +182,7 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
     let header = SequenceHeader {
         frame_count,
         grid: Grid { origin, step, bits },
+        base_bits,
         subdiv_iterations,
         scheme,
         components,
@@ -191,6 +197,9 @@ fn validate_header(h: &SequenceHeader) -> Result<(), String> {
     }
     if !BITS_RANGE.contains(&h.grid.bits) {
         return Err(format!("position bits {} out of range", h.grid.bits));
+    }
+    if !BITS_RANGE.contains(&h.base_bits) || h.base_bits > h.grid.bits {
+        return Err(format!("base mesh position bits {} out of range", h.base_bits));
     }
     if h.subdiv_iterations > MAX_SUBDIV {
         return Err(format!("{} subdivision iterations (at most {MAX_SUBDIV})", h.subdiv_iterations));
@@ -256,6 +265,7 @@ mod tests {
         SequenceHeader {
             frame_count: 2,
             grid: Grid { origin: [1.0, -2.0, 0.5], step: 0.01, bits: 12 },
+            base_bits: 10,
             subdiv_iterations: 3,
             scheme: Scheme::Midpoint,
             components: 1,

@@ -18,6 +18,17 @@ use crate::transform;
 /// Largest subdivided mesh a stream may ask for; a bound on what a hostile stream can make
 /// the decoder allocate.
 pub const MAX_OUTPUT_FACES: usize = 1 << 25;
+/// Output faces a frame may ask for per byte of its unit, beyond a floor of
+/// `MIN_FACE_ALLOWANCE`: so that a few corrupt bytes cannot make the decoder allocate
+/// gigabytes. Real streams need well under 100 (a 15 KB frame decodes to ~400k faces); the
+/// encoder refuses to write a frame beyond this allowance.
+pub const FACES_PER_UNIT_BYTE: usize = 512;
+pub const MIN_FACE_ALLOWANCE: usize = 1 << 20;
+
+/// The most output faces a frame unit of `unit_bytes` bytes may decode to.
+pub fn face_allowance(unit_bytes: usize) -> usize {
+    unit_bytes.saturating_mul(FACES_PER_UNIT_BYTE).clamp(MIN_FACE_ALLOWANCE, MAX_OUTPUT_FACES)
+}
 
 /// What the payload of an intra frame carries.
 pub struct IntraPayload<'a> {
@@ -74,9 +85,9 @@ pub fn read_intra_payload<'a>(unit: &Unit<'a>, frame: u32) -> Result<IntraPayloa
 
 fn decode_intra(h: &SequenceHeader, unit: &Unit, frame: u32) -> Result<Mesh, DecodeError> {
     let p = read_intra_payload(unit, frame)?;
-    let (positions, faces) = basecoder::decode_base(p.base, h.grid.bits)
+    let (positions, faces) = basecoder::decode_base(p.base, h.base_bits)
         .map_err(|e| DecodeError::new(Some(frame), p.base_offset, format!("base mesh: {e}")))?;
-    let too_big = faces.len().saturating_mul(1usize << (2 * h.subdiv_iterations)) > MAX_OUTPUT_FACES;
+    let too_big = faces.len().saturating_mul(1usize << (2 * h.subdiv_iterations)) > face_allowance(unit.payload.len());
     if faces.is_empty() || too_big {
         let reason = format!("base mesh of {} faces cannot be subdivided {} times", faces.len(), h.subdiv_iterations);
         return Err(DecodeError::new(Some(frame), p.base_offset, reason));
@@ -89,9 +100,10 @@ fn decode_intra(h: &SequenceHeader, unit: &Unit, frame: u32) -> Result<Mesh, Dec
     Ok(reconstruct(h, &sub, &frames, &q, p.qp))
 }
 
-/// Subdivision of the decoded base mesh (integer grid positions).
+/// Subdivision of the decoded base mesh (integer positions on the base mesh grid).
 pub fn subdivided_base(h: &SequenceHeader, positions: &[[u32; 3]], faces: &[[u32; 3]]) -> Subdivision {
-    let p: Vec<[f64; 3]> = positions.iter().map(|q| q.map(|c| c as f64)).collect();
+    let base_grid = h.grid.coarser(h.base_bits);
+    let p: Vec<[f64; 3]> = positions.iter().map(|q| base_grid.to_world(q.map(|c| c as f64))).collect();
     subdivide(&p, faces, h.subdiv_iterations, h.scheme)
 }
 

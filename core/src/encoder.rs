@@ -27,15 +27,18 @@ pub struct EncoderConfig {
     pub base_ratio: f64,
     pub subdiv_iterations: u32,
     pub scheme: Scheme,
-    /// Position bit depth of the base mesh grid.
+    /// Position bit depth of the grid over the sequence box.
     pub bits: u32,
+    /// Position bit depth of the base mesh (at most `bits`): coarser base positions cost
+    /// fewer bits and the displacements correct them.
+    pub base_bits: u32,
     /// Code only the normal component of each displacement.
     pub normal_only: bool,
 }
 
 impl Default for EncoderConfig {
     fn default() -> Self {
-        Self { qp: 28, base_ratio: 1.0 / 32.0, subdiv_iterations: 3, scheme: Scheme::Midpoint, bits: 12, normal_only: true }
+        Self { qp: 28, base_ratio: 1.0 / 6.0, subdiv_iterations: 3, scheme: Scheme::Midpoint, bits: 12, base_bits: 9, normal_only: true }
     }
 }
 
@@ -55,6 +58,9 @@ impl EncoderConfig {
         if !BITS_RANGE.contains(&self.bits) {
             return err(format!("position bits {} out of range {:?}", self.bits, BITS_RANGE));
         }
+        if !BITS_RANGE.contains(&self.base_bits) || self.base_bits > self.bits {
+            return err(format!("base mesh position bits {} must be in {}..={}", self.base_bits, BITS_RANGE.start(), self.bits));
+        }
         Ok(())
     }
 
@@ -63,6 +69,7 @@ impl EncoderConfig {
         SequenceHeader {
             frame_count,
             grid: Grid::over_box(min, max, self.bits),
+            base_bits: self.base_bits,
             subdiv_iterations: self.subdiv_iterations,
             scheme: self.scheme,
             components: if self.normal_only { 1 } else { 3 },
@@ -98,7 +105,7 @@ pub fn encode_intra(h: &SequenceHeader, cfg: &EncoderConfig, mesh: &Mesh) -> Res
     mesh.validate()?;
     let input: Vec<[f64; 3]> = mesh.positions.iter().map(|&p| h.grid.to_grid(p)).collect();
     let base_bytes = base_mesh_bytes(h, cfg, &input, &mesh.faces);
-    let (base_pos, base_faces) = basecoder::decode_base(&base_bytes, h.grid.bits)
+    let (base_pos, base_faces) = basecoder::decode_base(&base_bytes, h.base_bits)
         .map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
     let sub = decoder::subdivided_base(h, &base_pos, &base_faces);
     let frames = displace::local_frames(&sub.positions, &sub.faces);
@@ -114,6 +121,13 @@ pub fn encode_intra(h: &SequenceHeader, cfg: &EncoderConfig, mesh: &Mesh) -> Res
     w.i32(cfg.qp);
     w.block(&base_bytes);
     w.block(&coef_bytes);
+    if reconstruction.faces.len() > decoder::face_allowance(w.bytes.len()) {
+        return Err(InputError(format!(
+            "{} output faces from a {}-byte frame exceed what a decoder accepts; use fewer subdivision iterations",
+            reconstruction.faces.len(),
+            w.bytes.len()
+        )));
+    }
     let unit = bitstream::write_unit(FrameType::Intra, &w.bytes);
     let stats = FrameStats {
         bytes: unit.len(),
@@ -132,8 +146,9 @@ pub fn encode_intra(h: &SequenceHeader, cfg: &EncoderConfig, mesh: &Mesh) -> Res
 fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<u8> {
     let target = ((faces.len() as f64 * cfg.base_ratio).ceil() as usize).max(1);
     let base = decimate(input, faces, target);
-    let positions: Vec<[u32; 3]> = base.positions.iter().map(|&p| h.grid.quantize(p)).collect();
-    basecoder::encode_base(&positions, &base.faces, h.grid.bits)
+    let base_grid = h.grid.coarser(h.base_bits);
+    let positions: Vec<[u32; 3]> = base.positions.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect();
+    basecoder::encode_base(&positions, &base.faces, h.base_bits)
 }
 
 /// Forward lifting and per-level quantization of the local displacement components.

@@ -25,6 +25,13 @@ impl Grid {
         Self { origin: min, step, bits }
     }
 
+    /// The `bits`-bit grid made of every `2^(self.bits - bits)`-th point of this one,
+    /// expressed in this grid's units (so `to_grid` and `to_world` convert between the two).
+    pub fn coarser(&self, bits: u32) -> Self {
+        debug_assert!(bits <= self.bits);
+        Self { origin: [0.0; 3], step: (1u64 << (self.bits - bits)) as f64, bits }
+    }
+
     /// Largest integer coordinate.
     pub fn max_coord(&self) -> u32 {
         ((1u64 << self.bits) - 1) as u32
@@ -65,5 +72,14 @@ mod tests {
     fn a_flat_box_still_has_a_usable_step() {
         let g = Grid::over_box([1.0; 3], [1.0; 3], 10);
         assert_eq!(g.step, 1.0);
+    }
+
+    #[test]
+    fn a_coarser_grid_takes_every_nth_point_and_clamps_to_its_own_range() {
+        let g = Grid::over_box([0.0; 3], [1.0; 3], 12);
+        let c = g.coarser(10);
+        assert_eq!(c.quantize(c.to_grid([8.0, 9.0, 4095.0])), [2, 2, 1023]);
+        assert_eq!(c.to_world([3.0, 0.0, 1023.0]), [12.0, 0.0, 4092.0]);
+        assert_eq!(g.coarser(12).to_grid([5.0; 3]), [5.0; 3]);
     }
 }

@@ -13,8 +13,8 @@ import numpy as np
 from . import _core
 from .mesh import Mesh
 
-#: Encoder defaults; ``dynmesh encode --help`` documents each.
-DEFAULTS = dict(qp=28, base_ratio=1 / 32, subdiv=3, scheme="midpoint", bits=12, normal_only=True)
+#: Encoder defaults, as the Rust core defines them; ``dynmesh encode --help`` documents each.
+DEFAULTS: dict = dict(_core.default_options())
 
 
 class DecodeError(ValueError):
@@ -68,7 +68,7 @@ def encode_frames(
     """Encodes a sequence (Mesh objects or (positions, faces) pairs) into one stream.
 
     Options (see ``DEFAULTS``): qp, base_ratio, subdiv, scheme ("midpoint" or "loop"),
-    bits, normal_only. ``on_frame(index, stats)`` is called after each frame. Raises
+    bits (position grid), base_bits (base mesh positions, at most bits), normal_only. ``on_frame(index, stats)`` is called after each frame. Raises
     ValueError for an invalid mesh or option, naming the frame.
     """
     unknown = set(options) - set(DEFAULTS)
@@ -77,8 +77,9 @@ def encode_frames(
     opts = {**DEFAULTS, **options}
     meshes = [_as_mesh(f) for f in frames]
     lo, hi = sequence_bounds(meshes)
-    enc = _core.Encoder(len(meshes), lo.tolist(), hi.tolist(), int(opts["qp"]), float(opts["base_ratio"]),
-                        int(opts["subdiv"]), str(opts["scheme"]), int(opts["bits"]), bool(opts["normal_only"]))
+    enc = _core.Encoder(len(meshes), lo.tolist(), hi.tolist(), qp=int(opts["qp"]), base_ratio=float(opts["base_ratio"]),
+                        subdiv=int(opts["subdiv"]), scheme=str(opts["scheme"]), bits=int(opts["bits"]),
+                        base_bits=int(opts["base_bits"]), normal_only=bool(opts["normal_only"]))
     parts = [enc.header_bytes()]
     result = EncodeResult(b"")
     for i, m in enumerate(meshes):
