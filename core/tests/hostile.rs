@@ -6,21 +6,28 @@ use dynmesh::decoder;
 use dynmesh::encoder::{encode_intra, EncoderConfig};
 use dynmesh::mesh::Mesh;
 
-/// An octahedron refined by midpoint subdivision and pushed onto the unit sphere.
 fn ball() -> Mesh {
+    ball_of(2)
+}
+
+/// An octahedron refined by `levels` midpoint subdivisions and pushed onto the unit sphere.
+fn ball_of(levels: u32) -> Mesh {
     let p = vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
     let f = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
-    let s = dynmesh::subdivide::subdivide(&p, &f, 2, dynmesh::subdivide::Scheme::Midpoint);
+    let s = dynmesh::subdivide::subdivide(&p, &f, levels, dynmesh::subdivide::Scheme::Midpoint);
     let pos = s.positions.iter().map(|&q| dynmesh::mesh::normalize(q)).collect();
     Mesh::new(pos, s.faces)
 }
 
 fn stream(cfg: &EncoderConfig) -> Vec<u8> {
-    let m = ball();
+    stream_of(cfg, &ball())
+}
+
+fn stream_of(cfg: &EncoderConfig, m: &Mesh) -> Vec<u8> {
     let h = cfg.header(2, [-1.0; 3], [1.0; 3]);
     let mut out = bitstream::write_header(&h);
     for _ in 0..2 {
-        out.extend(encode_intra(&h, cfg, &m).unwrap().unit);
+        out.extend(encode_intra(&h, cfg, m).unwrap().unit);
     }
     out
 }
@@ -99,4 +106,19 @@ fn frame_types_other_than_intra_are_rejected() {
     assert_eq!(e.frame, Some(0));
     assert!(e.reason.contains("frame type"));
     assert_eq!(FrameType::Intra as u8, 0);
+}
+
+#[test]
+fn a_header_asking_for_more_subdivision_than_the_frame_justifies_is_refused() {
+    // 2048 base faces subdivided 6 times would be 8M faces from a frame of a few KB.
+    let cfg = EncoderConfig { subdiv_iterations: 0, base_ratio: 1.0, ..EncoderConfig::default() };
+    let mut s = stream_of(&cfg, &ball_of(4));
+    let (h, start) = bitstream::read_header(&s).unwrap();
+    let bigger = bitstream::SequenceHeader { subdiv_iterations: bitstream::MAX_SUBDIV, ..h };
+    let header = bitstream::write_header(&bigger);
+    assert_eq!(header.len(), start);
+    s[..start].copy_from_slice(&header);
+    let e = decode_all(&s).unwrap_err();
+    assert_eq!(e.frame, Some(0));
+    assert!(e.to_string().contains("cannot be subdivided"), "{e}");
 }
