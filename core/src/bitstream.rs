@@ -168,17 +168,18 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
     let bits = r.u8("position bits")? as u32;
     let base_bits = r.u8("base mesh position bits")? as u32;
     let subdiv_iterations = r.u8("subdivision iterations")? as u32;
-    let scheme = match r.u8("subdivision scheme")? {
-        0 => Scheme::Midpoint,
-        1 => Scheme::Loop,
-        s => return Err(r.error(format!("unknown subdivision scheme {s}"))),
-    };
+    let scheme_code = r.u8("subdivision scheme")?;
     let components = r.u8("displacement components")?;
     let end = data.len() - r.remaining();
     let crc = r.u32("header CRC")?;
     if crc != crc32fast::hash(&data[..end]) {
         return Err(DecodeError::new(None, end as u64, "sequence header CRC mismatch"));
     }
+    let scheme = match scheme_code {
+        0 => Scheme::Midpoint,
+        1 => Scheme::Loop,
+        s => return Err(DecodeError::new(None, 44, format!("unknown subdivision scheme {s}"))),
+    };
     let header = SequenceHeader {
         frame_count,
         grid: Grid { origin, step, bits },

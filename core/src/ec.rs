@@ -40,7 +40,7 @@ impl BitModel {
 
     #[inline]
     fn update(&mut self, bit: bool) {
-        // Both counters stay inside [2^rate - 1, 2^16 - 2^rate], so p0 is never 0 or 1.
+        // Both counters stay inside [2^rate - 1, 2^16 - 2^rate + 1], so p0 is never 0 or 1.
         if bit {
             self.fast -= self.fast >> FAST_RATE;
             self.slow -= self.slow >> SLOW_RATE;
