@@ -15,6 +15,7 @@ pub mod grid;
 pub mod quadric;
 pub mod decimate;
 pub mod basecoder;
+pub mod motion;
 pub mod subdivide;
 pub mod bvh;
 pub mod displace;
