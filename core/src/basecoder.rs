@@ -50,9 +50,9 @@
 //! The canonical mesh is the decoder's: vertices numbered in order of creation by the
 //! traversal, faces in traversal order.
 
-use std::collections::HashMap;
 
 use crate::ec::{BitModel, Decoder, Encoder, IntModel, UIntModel};
+use crate::mesh::{edge_key, EdgeMap};
 
 /// Most faces one byte of stream may announce: a hostile stream costs at most this much
 /// work and memory per byte. Real meshes need well over 2 bits per face; the encoder pads the
@@ -187,11 +187,6 @@ impl Side for DecSide<'_> {
     }
 }
 
-#[inline]
-fn edge_key(a: u32, b: u32) -> u64 {
-    ((a.min(b) as u64) << 32) | a.max(b) as u64
-}
-
 /// The encoder's knowledge of the input mesh: which faces are still to code and how
 /// original vertex indices map to the canonical ones.
 struct Source<'a> {
@@ -290,7 +285,7 @@ struct Conn {
     in_open: Vec<Vec<u32>>,
     /// Directed half-edge -> its latest gate, possibly closed: the gates of one half-edge
     /// form a chain through `Gate::below`, closed ones dropped lazily when met.
-    by_pair: HashMap<u64, u32>,
+    by_pair: EdgeMap<u32>,
     /// Faces decoded around each vertex (a context for the connectivity symbols).
     face_count: Vec<u32>,
     /// Vertices starting / ending a gate with no face across: the mesh's border goes on there.

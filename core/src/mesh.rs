@@ -1,6 +1,41 @@
 //! The triangle mesh that flows through the pipeline.
 
+use std::collections::HashMap;
+use std::hash::{BuildHasherDefault, Hasher};
+
 use crate::error::InputError;
+
+/// The key of the undirected edge `{a, b}`.
+#[inline]
+pub fn edge_key(a: u32, b: u32) -> u64 {
+    ((a.min(b) as u64) << 32) | a.max(b) as u64
+}
+
+/// A hash map keyed by edge (or other packed `u64`) keys. The default SipHash guards against
+/// adversarial keys, which vertex indices are not; a multiplicative hash is several times
+/// faster on the subdivision and connectivity hot paths.
+pub type EdgeMap<V> = HashMap<u64, V, BuildHasherDefault<EdgeHasher>>;
+
+/// Fibonacci hashing of one `u64`, folded so that the low bits depend on every input bit.
+#[derive(Default)]
+pub struct EdgeHasher(u64);
+
+impl Hasher for EdgeHasher {
+    #[inline]
+    fn write_u64(&mut self, key: u64) {
+        let h = key.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        self.0 = h ^ (h >> 29);
+    }
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.write_u64(self.0 ^ b as u64);
+        }
+    }
+    #[inline]
+    fn finish(&self) -> u64 {
+        self.0
+    }
+}
 
 /// An indexed triangle mesh: positions and counter-clockwise triangles.
 #[derive(Debug, Clone, Default, PartialEq)]

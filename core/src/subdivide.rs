@@ -5,7 +5,7 @@
 //! range, and each new vertex records its parent edge: the lifting transform and the
 //! displacement coder rely on both.
 
-use std::collections::HashMap;
+use crate::mesh::{edge_key, EdgeMap};
 
 /// How new vertices are placed.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -57,7 +57,7 @@ pub fn subdivide(positions: &[[f64; 3]], faces: &[[u32; 3]], iterations: u32, sc
 /// One 1-to-4 split, appending the new level.
 fn split_once(s: &mut Subdivision, scheme: Scheme) {
     let n0 = s.positions.len();
-    let mut edge_vertex: HashMap<u64, u32> = HashMap::with_capacity(s.faces.len() * 3 / 2);
+    let mut edge_vertex: EdgeMap<u32> = EdgeMap::with_capacity_and_hasher(s.faces.len() * 3 / 2, Default::default());
     // Opposite corners of each edge, for Loop's odd-vertex rule.
     let mut opposite: Vec<[u32; 3]> = Vec::new();
     let mut new_faces = Vec::with_capacity(s.faces.len() * 4);
@@ -94,10 +94,6 @@ fn split_once(s: &mut Subdivision, scheme: Scheme) {
     s.lod_offsets.push(s.positions.len());
 }
 
-fn edge_key(a: u32, b: u32) -> u64 {
-    ((a.min(b) as u64) << 32) | a.max(b) as u64
-}
-
 /// Position of the vertex that splits `edge`; `opp = [c, d, face count]`.
 fn odd_position(p: &[[f64; 3]], edge: [u32; 2], opp: [u32; 3], scheme: Scheme) -> [f64; 3] {
     let (a, b) = (p[edge[0] as usize], p[edge[1] as usize]);
@@ -112,7 +108,7 @@ fn odd_position(p: &[[f64; 3]], edge: [u32; 2], opp: [u32; 3], scheme: Scheme) -
 /// neighbours; boundary vertices use their two boundary neighbours only; vertices on
 /// non-manifold edges stay put so that no ambiguous rule is applied.
 fn smooth_even(positions: &mut [[f64; 3]], faces: &[[u32; 3]]) {
-    let mut edge_faces: HashMap<u64, u32> = HashMap::with_capacity(faces.len() * 3 / 2);
+    let mut edge_faces: EdgeMap<u32> = EdgeMap::with_capacity_and_hasher(faces.len() * 3 / 2, Default::default());
     for f in faces {
         for k in 0..3 {
             *edge_faces.entry(edge_key(f[k], f[(k + 1) % 3])).or_insert(0) += 1;
