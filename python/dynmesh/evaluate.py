@@ -1,0 +1,541 @@
+"""Rate-distortion experiments: a TOML file in, one measured record per run out.
+
+An experiment is sequences x codec variants x rate points. Each *run* (one sequence,
+one variant, one rate point) encodes the sequence, decodes it, and measures D1/D2 PSNR
+per frame as DESIGN.md section 3 says (``dynmesh.metrics``: grid over the bounding box
+of the source frames of the run, the sequence's peak), the stream size and the encode
+and decode wall time.
+
+The experiment file (paths are relative to the file's directory)::
+
+    anchor = "dynmesh-ai"     # BD-rates are measured against this variant (default: the first)
+    fps = 30                  # optional: frames per second for Mbit/s (default 30)
+    grid_size = 1024          # optional: metric sampling grid (default 1024)
+
+    [[sequences]]
+    name = "basketball_player"
+    path = "../data/basketball_player"  # directory, glob or printf pattern
+    start = 0                           # optional: first frame (index; number for printf)
+    count = 10                          # optional: number of frames (default: all)
+    peak = 18.75                        # optional: PSNR peak (default: largest box side)
+
+    [rates.dynmesh]                     # a named set of rate points, shared by name
+    R1 = { qp = 46, base_ratio = 0.0078125, bits = 9 }
+    R2 = { qp = 40, base_ratio = 0.015625, bits = 10 }
+
+    [[variants]]
+    name = "dynmesh-ai"
+    codec = "dynmesh"                   # "dynmesh" or "draco"
+    options = { subdiv = 3 }            # optional: options of every rate point
+    rates = "dynmesh"                   # a [rates.NAME] set ...
+
+    [[variants]]
+    name = "draco"
+    codec = "draco"
+    [variants.rates]                    # ... or the variant's own rate points
+    R1 = { quantization_bits = 7 }
+
+``title`` (top level) and ``description`` (per variant) are free text for readers and
+are otherwise ignored; any other unknown key is an error, so a typo cannot go unnoticed.
+A run's options are the codec defaults, overridden by the variant's ``options``,
+overridden by the rate point's. Every finished run is saved at once to
+``OUT/runs/<sequence>__<variant>__<rate>.json`` (temporary file + rename) together
+with a key hashed from everything that determines its result (codec and its build,
+full options, frame files, peak, grid, fps); a later call reuses a saved run whose key
+matches, so an interrupted experiment resumes and a changed option reruns only what
+it changes. ``OUT/results.json`` and ``OUT/results.csv`` collect all runs.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import json
+import math
+import multiprocessing
+import os
+import re
+import time
+from collections.abc import Callable
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass, field
+from functools import lru_cache
+from pathlib import Path
+
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10: the same parser, from PyPI
+    import tomli as tomllib
+
+from . import api
+from .baselines import Draco, Encoded
+from .io import read_mesh
+from .mesh import Mesh
+from .sequence import SequenceError, resolve_sequence
+
+__all__ = ["ConfigError", "RunError", "Experiment", "Run", "load_experiment", "plan_runs", "run_experiment",
+           "measure", "load_results", "CODECS"]
+
+#: Bump when a run record's fields or the way they are measured change: older saved runs
+#: then no longer match and are measured again.
+SCHEMA = 1
+
+
+class ConfigError(ValueError):
+    """An experiment file that cannot be used. The message names the file and the key."""
+
+
+class RunError(ValueError):
+    """A run that failed; the message names the run (sequence/variant/rate)."""
+
+
+class Dynmesh:
+    """The dynmesh codec (all-intra today), through :mod:`dynmesh.api`."""
+
+    name = "dynmesh"
+    DEFAULTS = api.DEFAULTS
+
+    @staticmethod
+    def version() -> str:
+        return f"dynmesh {_package_version()} core {_core_digest()}"
+
+    @staticmethod
+    def encode(meshes: list[Mesh], **options) -> Encoded:
+        result = api.encode_frames(meshes, **options)
+        return Encoded(result.data, [int(f["bytes"]) for f in result.frames], len(result.data))
+
+    @staticmethod
+    def decode(payload: bytes) -> list[Mesh]:
+        return list(api.decode(payload))
+
+
+#: Codec name in the experiment file -> adapter (see :mod:`dynmesh.baselines`).
+CODECS = {"dynmesh": Dynmesh, "draco": Draco}
+
+
+def _package_version() -> str:
+    from . import __version__
+
+    return __version__
+
+
+def _file_digest(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()[:16]
+
+
+# Short hash of the compiled core, so a rebuilt codec does not reuse old results. Taken
+# when this module is imported, right after the core was loaded, so that a rebuild
+# during a long experiment does not relabel results of the code actually running.
+_CORE_DIGEST = _file_digest(api._core.__file__)
+
+
+def _core_digest() -> str:
+    return _CORE_DIGEST
+
+
+# ---------------------------------------------------------------- the experiment file
+
+
+@dataclass(frozen=True)
+class Sequence:
+    """A sequence as the experiment uses it: its frame files are resolved at load time."""
+
+    name: str
+    frames: tuple[Path, ...]
+    peak: float | None
+
+
+@dataclass(frozen=True)
+class RatePoint:
+    name: str
+    options: dict
+
+
+@dataclass
+class Variant:
+    name: str
+    codec: str
+    options: dict
+    rates: list[RatePoint]
+
+
+@dataclass
+class Experiment:
+    """A parsed, checked experiment file."""
+
+    path: Path
+    anchor: str
+    fps: float
+    grid_size: int
+    sequences: list[Sequence]
+    variants: list[Variant]
+
+    @property
+    def name(self) -> str:
+        return self.path.stem
+
+    def variant(self, name: str) -> Variant:
+        return next(v for v in self.variants if v.name == name)
+
+
+_TOP_KEYS = {"anchor", "fps", "grid_size", "sequences", "variants", "rates", "title", "description"}
+_SEQUENCE_KEYS = {"name", "path", "start", "count", "peak"}
+_VARIANT_KEYS = {"name", "codec", "options", "rates", "description"}
+_NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
+
+
+def load_experiment(path: str | os.PathLike) -> Experiment:
+    """Reads and checks an experiment file; every sequence's frames must exist.
+
+    Raises ConfigError (a ValueError) with a one-line message naming the file and the
+    offending key: unreadable or invalid TOML, a missing or unknown key, a wrong type,
+    an unknown codec or option, a duplicate name, an anchor that is no variant, a
+    sequence whose frames cannot be found.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as e:
+        raise ConfigError(f"{path}: cannot read experiment file: {e.strerror or e}") from None
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: invalid TOML: {e}") from None
+    where = str(path)
+    _no_unknown(doc, _TOP_KEYS, where)
+    base = path.resolve().parent
+
+    sequences = [_sequence(s, base, f"{where}: sequences[{i}]")
+                 for i, s in enumerate(_list_of_tables(doc, "sequences", where))]
+    _unique([s.name for s in sequences], f"{where}: sequences")
+    rate_sets = _get(doc, "rates", dict, where, default={})
+    variants = [_variant(v, rate_sets, f"{where}: variants[{i}]")
+                for i, v in enumerate(_list_of_tables(doc, "variants", where))]
+    _unique([v.name for v in variants], f"{where}: variants")
+
+    anchor = _get(doc, "anchor", str, where, default=variants[0].name)
+    if anchor not in {v.name for v in variants}:
+        raise ConfigError(f"{where}: anchor {anchor!r} is not a variant (variants: {', '.join(v.name for v in variants)})")
+    fps = float(_get(doc, "fps", (int, float), where, default=30))
+    grid = _get(doc, "grid_size", int, where, default=1024)
+    if not fps > 0 or grid < 2:
+        raise ConfigError(f"{where}: fps must be positive and grid_size at least 2")
+    return Experiment(path, anchor, fps, grid, sequences, variants)
+
+
+def _sequence(t: dict, base: Path, where: str) -> Sequence:
+    _no_unknown(t, _SEQUENCE_KEYS, where)
+    name = _name(t, where)
+    where = f"{where.rsplit(':', 1)[0]}: sequence {name!r}"
+    spec = _get(t, "path", str, where)
+    start = _get(t, "start", int, where, default=None)
+    count = _get(t, "count", int, where, default=None)
+    peak = _get(t, "peak", (int, float), where, default=None)
+    if peak is not None and not peak > 0:
+        raise ConfigError(f"{where}: peak must be positive, got {peak}")
+    # Relative to the experiment file, whatever the current directory is.
+    full = spec if os.path.isabs(spec) else str(base / spec)
+    try:
+        frames = resolve_sequence(full, start, count)
+    except SequenceError as e:
+        raise ConfigError(f"{where}: path {spec!r}: {e}") from None
+    return Sequence(name, tuple(Path(os.path.normpath(p)) for p in frames), None if peak is None else float(peak))
+
+
+def _variant(t: dict, rate_sets: dict, where: str) -> Variant:
+    _no_unknown(t, _VARIANT_KEYS, where)
+    name = _name(t, where)
+    where = f"{where.rsplit(':', 1)[0]}: variant {name!r}"
+    codec = _get(t, "codec", str, where)
+    if codec not in CODECS:
+        raise ConfigError(f"{where}: unknown codec {codec!r} (known: {', '.join(CODECS)})")
+    options = _get(t, "options", dict, where, default={})
+    rates = _get(t, "rates", (str, dict), where)
+    if isinstance(rates, str):
+        if rates not in rate_sets:
+            raise ConfigError(f"{where}: rates = {rates!r} names no [rates.{rates}] table")
+        rates = _get(rate_sets, rates, dict, f"{where.rsplit(':', 1)[0]}: rates")
+    if not rates:
+        raise ConfigError(f"{where}: no rate points")
+    points = []
+    for rate, opts in rates.items():
+        if not isinstance(opts, dict):
+            raise ConfigError(f"{where}: rate point {rate!r} must be a table of options")
+        if not _NAME.match(rate):
+            raise ConfigError(f"{where}: rate point name {rate!r} must be letters, digits, '_', '-', '.', '+'")
+        merged = {**options, **opts}
+        unknown = sorted(set(merged) - set(CODECS[codec].DEFAULTS))
+        if unknown:
+            raise ConfigError(f"{where}: rate point {rate!r}: unknown {codec} option(s) {', '.join(unknown)} "
+                              f"(known: {', '.join(CODECS[codec].DEFAULTS)})")
+        points.append(RatePoint(rate, merged))
+    return Variant(name, codec, options, points)
+
+
+def _list_of_tables(doc: dict, key: str, where: str) -> list[dict]:
+    value = _get(doc, key, list, where)
+    if not value or not all(isinstance(v, dict) for v in value):
+        raise ConfigError(f"{where}: '{key}' must be a non-empty array of tables ([[{key}]])")
+    return value
+
+
+def _get(t: dict, key: str, types, where: str, default=...):
+    if key not in t:
+        if default is ...:
+            raise ConfigError(f"{where}: missing key '{key}'")
+        return default
+    value = t[key]
+    # bool is an int in Python; no key here takes a bool where a number is meant.
+    if not isinstance(value, types) or (isinstance(value, bool) and types in (int, (int, float))):
+        names = "/".join(x.__name__ for x in (types if isinstance(types, tuple) else (types,)))
+        raise ConfigError(f"{where}: '{key}' must be {names}, got {type(value).__name__} {value!r}")
+    return value
+
+
+def _name(t: dict, where: str) -> str:
+    name = _get(t, "name", str, where)
+    if not _NAME.match(name):
+        raise ConfigError(f"{where}: name {name!r} must be letters, digits, '_', '-', '.', '+'")
+    return name
+
+
+def _no_unknown(t: dict, known: set, where: str) -> None:
+    unknown = sorted(set(t) - known)
+    if unknown:
+        raise ConfigError(f"{where}: unknown key(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+
+
+def _unique(names: list[str], where: str) -> None:
+    seen = set()
+    for n in names:
+        if n in seen:
+            raise ConfigError(f"{where}: name {n!r} appears twice")
+        seen.add(n)
+
+
+# ---------------------------------------------------------------- runs
+
+
+@dataclass(frozen=True)
+class Run:
+    """One sequence x variant x rate point, with everything a worker process needs."""
+
+    sequence: Sequence
+    variant: str
+    codec: str
+    rate: str
+    options: dict = field(hash=False)
+    fps: float
+    grid_size: int
+    base: Path  # directory of the experiment file: frame paths in records are relative to it
+
+    @property
+    def id(self) -> str:
+        return f"{self.sequence.name}/{self.variant}/{self.rate}"
+
+    @property
+    def file_name(self) -> str:
+        return f"{self.sequence.name}__{self.variant}__{self.rate}.json"
+
+    def full_options(self) -> dict:
+        return {**CODECS[self.codec].DEFAULTS, **self.options}
+
+    def frame_names(self) -> list[str]:
+        return [Path(os.path.relpath(p, self.base)).as_posix() for p in self.sequence.frames]
+
+    def key(self) -> str:
+        """Hash of everything that determines the run's result (not its timings)."""
+        ident = {
+            "schema": SCHEMA,
+            "codec": self.codec,
+            "codec_version": CODECS[self.codec].version(),
+            "options": self.full_options(),
+            "frames": [[n, p.stat().st_size] for n, p in zip(self.frame_names(), self.sequence.frames)],
+            "peak": self.sequence.peak,
+            "grid_size": self.grid_size,
+            "fps": self.fps,
+        }
+        return hashlib.sha256(json.dumps(ident, sort_keys=True).encode()).hexdigest()[:24]
+
+
+def plan_runs(exp: Experiment) -> list[Run]:
+    """All runs in report order: sequence, then variant, then rate point."""
+    base = exp.path.resolve().parent
+    return [Run(s, v.name, v.codec, r.name, r.options, exp.fps, exp.grid_size, base)
+            for s in exp.sequences for v in exp.variants for r in v.rates]
+
+
+@lru_cache(maxsize=2)
+def _read_frames(frames: tuple[Path, ...]) -> tuple[Mesh, ...]:
+    # A worker usually measures several rate points of one sequence in a row.
+    return tuple(read_mesh(p) for p in frames)
+
+
+def measure(run: Run) -> dict:
+    """Encodes, decodes and measures one run; returns its record (see module docstring).
+
+    Times are wall-clock seconds per frame of the codec's encode and decode calls alone
+    (reading files and measuring distortion are not counted). Raises RunError.
+    """
+    codec = CODECS[run.codec]
+    try:
+        refs = list(_read_frames(run.sequence.frames))
+        t0 = time.perf_counter()
+        enc = codec.encode(refs, **run.full_options())
+        t1 = time.perf_counter()
+        decoded = codec.decode(enc.payload)
+        t2 = time.perf_counter()
+        m = api.metrics(refs, decoded, peak=run.sequence.peak, grid_size=run.grid_size)
+    except (ValueError, TypeError, OSError) as e:
+        raise RunError(f"run {run.id}: {e}") from None
+    n = len(refs)
+    bits_per_frame = 8 * enc.total_bytes / n
+    per_frame = [{"frame": i, "file": name, "bytes": b, "d1_psnr": f["d1_psnr"], "d2_psnr": f["d2_psnr"],
+                  "d1_mse": f["d1_mse"], "d2_mse": f["d2_mse"]}
+                 for i, (name, b, f) in enumerate(zip(run.frame_names(), enc.frame_bytes, m["frames"]))]
+    return {
+        "schema": SCHEMA, "key": run.key(), "sequence": run.sequence.name, "variant": run.variant,
+        "codec": run.codec, "codec_version": codec.version(), "rate": run.rate, "options": run.full_options(),
+        "frames": n, "peak": m["peak"], "grid_size": run.grid_size, "fps": run.fps,
+        "bytes": enc.total_bytes, "bits_per_frame": bits_per_frame, "mbps": bits_per_frame * run.fps / 1e6,
+        "d1_psnr": m["d1_psnr"], "d2_psnr": m["d2_psnr"],
+        "encode_s_per_frame": (t1 - t0) / n, "decode_s_per_frame": (t2 - t1) / n,
+        "per_frame": per_frame,
+    }
+
+
+#: Record fields that are measured times: they differ between otherwise identical runs.
+TIMING_FIELDS = ("encode_s_per_frame", "decode_s_per_frame")
+
+
+def _cached(out: Path, run: Run) -> dict | None:
+    try:
+        record = json.loads((out / "runs" / run.file_name).read_text())
+    except (OSError, ValueError):
+        return None  # absent or half-written by an older tool: measure again
+    return record if record.get("key") == run.key() else None
+
+
+def _save_json(path: Path, obj) -> None:
+    api.write_bytes_atomic(path, (json.dumps(obj, indent=1, sort_keys=False) + "\n").encode())
+
+
+def run_experiment(
+    exp: Experiment,
+    out: str | os.PathLike,
+    *,
+    jobs: int = 1,
+    force: bool = False,
+    on_start: Callable[[Run], None] | None = None,
+    on_done: Callable[[Run, dict, bool], None] | None = None,
+) -> list[dict]:
+    """Measures every run of ``exp`` not already saved in ``out`` (all of them with
+    ``force``), ``jobs`` at a time in separate processes, and returns all records in
+    plan order. ``on_start(run)`` is called when a run is handed to a worker;
+    ``on_done(run, record, reused)`` when it is finished or found in the cache.
+    Each record is saved as soon as it exists, and results.json/csv are rewritten after
+    every run. Raises RunError for a failed run, after saving the others that finished.
+    """
+    out = Path(out)
+    (out / "runs").mkdir(parents=True, exist_ok=True)
+    runs = plan_runs(exp)
+    records: dict[str, dict] = {}
+    todo = []
+    for run in runs:
+        record = None if force else _cached(out, run)
+        if record is None:
+            todo.append(run)
+        else:
+            records[run.id] = record
+            if on_done:
+                on_done(run, record, True)
+
+    def finish(run: Run, record: dict) -> None:
+        _save_json(out / "runs" / run.file_name, record)
+        records[run.id] = record
+        write_summary(exp, [records[r.id] for r in runs if r.id in records], out)
+        if on_done:
+            on_done(run, record, False)
+
+    if jobs <= 1 or len(todo) <= 1:
+        for run in todo:
+            if on_start:
+                on_start(run)
+            finish(run, measure(run))
+    else:
+        # spawn, not fork: the parent may already run the core's thread pool (rayon),
+        # which a forked child would inherit in a broken state.
+        ctx = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+            pending, queue = {}, list(todo)
+            try:
+                while queue or pending:
+                    # Keep exactly `jobs` runs in flight, so on_start means "started".
+                    while queue and len(pending) < jobs:
+                        run = queue.pop(0)
+                        if on_start:
+                            on_start(run)
+                        pending[pool.submit(measure, run)] = run
+                    done, _ = wait(pending, return_when=FIRST_COMPLETED)
+                    for fut in done:
+                        finish(pending.pop(fut), fut.result())
+            except BaseException:
+                for fut in pending:
+                    fut.cancel()
+                raise
+    ordered = [records[r.id] for r in runs]
+    write_summary(exp, ordered, out)
+    return ordered
+
+
+# ---------------------------------------------------------------- results files
+
+CSV_FIELDS = ["sequence", "variant", "codec", "rate", "options", "frames", "bytes", "bits_per_frame", "mbps",
+              "d1_psnr", "d2_psnr", "encode_s_per_frame", "decode_s_per_frame", "peak", "key"]
+
+
+def results_document(exp: Experiment, records: list[dict]) -> dict:
+    """The content of results.json: the experiment as run and every run's record."""
+    base = exp.path.resolve().parent
+    return {
+        "experiment": exp.name,
+        "anchor": exp.anchor,
+        "fps": exp.fps,
+        "grid_size": exp.grid_size,
+        "sequences": [{"name": s.name, "frames": len(s.frames), "peak": s.peak,
+                       "first": Path(os.path.relpath(s.frames[0], base)).as_posix()} for s in exp.sequences],
+        "variants": [{"name": v.name, "codec": v.codec, "options": v.options,
+                      "rates": {r.name: r.options for r in v.rates}} for v in exp.variants],
+        "runs": records,
+    }
+
+
+def write_summary(exp: Experiment, records: list[dict], out: Path) -> None:
+    """Writes out/results.json and out/results.csv (each to a temporary name, then renamed)."""
+    _save_json(out / "results.json", results_document(exp, records))
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, CSV_FIELDS, lineterminator="\n")
+    w.writeheader()
+    for r in records:
+        w.writerow({k: json.dumps(r[k], sort_keys=True) if k == "options" else _csv_value(r[k]) for k in CSV_FIELDS})
+    api.write_bytes_atomic(out / "results.csv", buf.getvalue().encode())
+
+
+def _csv_value(v):
+    return repr(v) if isinstance(v, float) and math.isfinite(v) else v
+
+
+def load_results(out: str | os.PathLike) -> dict:
+    """Reads OUT/results.json as written by :func:`run_experiment`. Raises OSError/ValueError."""
+    path = Path(out) / "results.json"
+    try:
+        return json.loads(path.read_text())
+    except OSError as e:
+        raise OSError(f"{path}: cannot read results ({e.strerror or e}); run the experiment first") from None
+    except ValueError as e:
+        raise ValueError(f"{path}: not a results file: {e}") from None

@@ -1,0 +1,362 @@
+"""What an experiment's results say: BD-rate tables, RD plots and a Markdown page.
+
+Everything here reads the results document of :mod:`dynmesh.evaluate` (results.json)
+and measures nothing itself, so a report can be rebuilt from saved results at any time.
+
+BD-rate (DESIGN.md section 3): Bjontegaard delta rate of a variant against the anchor,
+piecewise cubic Hermite (PCHIP) interpolation of log10(Mbit/s) as a function of PSNR,
+averaged over the PSNR range both curves cover (the ``bjontegaard`` package,
+``method="pchip"``, which matches the JCT-VC/JVET CTC spreadsheets). Negative means
+fewer bits than the anchor for the same quality. The average row is the arithmetic
+mean of the per-sequence BD-rates, as in the CTC spreadsheets.
+
+Time ratios: test time / anchor time per frame, each side the geometric mean over its
+rate points; the average row is the geometric mean over sequences (CTC spreadsheets
+use geometric means for times as well).
+"""
+
+from __future__ import annotations
+
+import datetime
+import math
+import os
+import platform
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["bd_rate", "bd_rows", "rd_points", "plot_rd", "markdown", "write_report"]
+
+METRICS = (("d1_psnr", "D1"), ("d2_psnr", "D2"))
+
+
+def rd_points(results: dict, sequence: str, variant: str) -> list[dict]:
+    """The run records of one sequence and variant, in the order of the rate points."""
+    return [r for r in results["runs"] if r["sequence"] == sequence and r["variant"] == variant]
+
+
+def bd_rate(anchor: list[tuple[float, float]], test: list[tuple[float, float]]) -> dict:
+    """BD-rate in percent of ``test`` against ``anchor``, each a list of (rate, psnr).
+
+    Returns {"bd_rate": percent or None, "overlap": fraction of the union PSNR range both
+    curves cover, "note": why there is no value or why it is weak, or ""}. The points
+    are sorted by PSNR first (PCHIP needs increasing abscissae); a curve whose rate does
+    not grow with PSNR, or that has fewer than 2 points, gets no value.
+    """
+    a, t = _curve(anchor), _curve(test)
+    for name, c in (("anchor", a), ("test", t)):
+        if c is None:
+            return {"bd_rate": None, "overlap": 0.0, "note": f"{name} curve has fewer than 2 distinct points"}
+        if np.any(np.diff(c[0]) <= 0):
+            return {"bd_rate": None, "overlap": 0.0, "note": f"{name} rate does not grow with PSNR"}
+    lo, hi = max(a[1][0], t[1][0]), min(a[1][-1], t[1][-1])
+    union = max(a[1][-1], t[1][-1]) - min(a[1][0], t[1][0])
+    overlap = max(hi - lo, 0.0) / union if union > 0 else 0.0
+    if overlap <= 0:
+        return {"bd_rate": None, "overlap": 0.0, "note": "PSNR ranges do not overlap"}
+    import bjontegaard
+
+    with warnings.catch_warnings():
+        # The package warns below 75 % overlap; the overlap is reported with the value instead.
+        warnings.simplefilter("ignore")
+        value = float(bjontegaard.bd_rate(a[0], a[1], t[0], t[1], method="pchip", require_matching_points=False,
+                                          min_overlap=0))
+    note = ""
+    if min(len(a[0]), len(t[0])) < 4:
+        note = "fewer than 4 rate points"
+    elif overlap < 0.5:
+        note = f"PSNR ranges overlap {overlap:.0%}"
+    return {"bd_rate": value, "overlap": overlap, "note": note}
+
+
+def _curve(points: list[tuple[float, float]]):
+    """(rates, psnrs) sorted by PSNR, one point per PSNR value, or None if under 2 points."""
+    best: dict[float, float] = {}
+    for rate, psnr in points:
+        if rate > 0 and math.isfinite(psnr):
+            best[psnr] = min(rate, best.get(psnr, math.inf))
+    if len(best) < 2:
+        return None
+    psnr = np.array(sorted(best))
+    return np.array([best[p] for p in psnr]), psnr
+
+
+def _geomean(values) -> float | None:
+    values = [v for v in values if v is not None and v > 0]
+    return float(np.exp(np.mean(np.log(values)))) if values else None
+
+
+def bd_rows(results: dict) -> list[dict]:
+    """One row per sequence and non-anchor variant, then one "Average" row per variant.
+
+    Row: sequence, variant, d1_bd, d2_bd (percent or None), d1_note, d2_note,
+    enc_ratio, dec_ratio (test time / anchor time, or None).
+    """
+    anchor = results["anchor"]
+    tests = [v["name"] for v in results["variants"] if v["name"] != anchor]
+    rows = []
+    for seq in (s["name"] for s in results["sequences"]):
+        ref = rd_points(results, seq, anchor)
+        for var in tests:
+            pts = rd_points(results, seq, var)
+            row = {"sequence": seq, "variant": var}
+            for key, label in METRICS:
+                bd = bd_rate([(r["mbps"], r[key]) for r in ref], [(r["mbps"], r[key]) for r in pts])
+                row[f"{label.lower()}_bd"], row[f"{label.lower()}_note"] = bd["bd_rate"], bd["note"]
+            for key, short in (("encode_s_per_frame", "enc"), ("decode_s_per_frame", "dec")):
+                num, den = _geomean(r[key] for r in pts), _geomean(r[key] for r in ref)
+                row[f"{short}_ratio"] = num / den if num and den else None
+            rows.append(row)
+    for var in tests:
+        mine = [r for r in rows if r["variant"] == var]
+        avg = {"sequence": "Average", "variant": var}
+        for m in ("d1", "d2"):
+            vals = [r[f"{m}_bd"] for r in mine]
+            ok = [v for v in vals if v is not None]
+            avg[f"{m}_bd"] = float(np.mean(ok)) if ok else None
+            avg[f"{m}_note"] = "" if len(ok) == len(vals) else f"over {len(ok)} of {len(vals)} sequences"
+        for t in ("enc", "dec"):
+            avg[f"{t}_ratio"] = _geomean(r[f"{t}_ratio"] for r in mine)
+        rows.append(avg)
+    return rows
+
+
+# ---------------------------------------------------------------- plots
+
+
+def plot_rd(results: dict, sequence: str, metric: str, path: str | os.PathLike) -> Path:
+    """One RD plot (Mbit/s against PSNR, one line with markers per variant) as PNG."""
+    # Figure + Agg canvas rather than pyplot: no global backend state, safe in any process.
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    label = dict(METRICS)[metric]
+    fig = Figure(figsize=(6.4, 4.4), dpi=100)
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    markers = "osD^vP*X"
+    for i, v in enumerate(results["variants"]):
+        pts = sorted(rd_points(results, sequence, v["name"]), key=lambda r: r["mbps"])
+        if not pts:
+            continue
+        anchor = v["name"] == results["anchor"]
+        ax.plot([r["mbps"] for r in pts], [r[metric] for r in pts], marker=markers[i % len(markers)],
+                linewidth=2.2 if anchor else 1.5, label=v["name"] + (" (anchor)" if anchor else ""))
+    ax.set_xlabel(f"rate (Mbit/s at {results['fps']:g} fps)")
+    ax.set_ylabel(f"{label} PSNR (dB)")
+    ax.set_title(f"{sequence}: {label} PSNR")
+    ax.grid(True, alpha=0.35)
+    ax.set_xlim(left=0)
+    ax.legend(loc="lower right")
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    # No timestamp in the file, so an unchanged result gives an unchanged image.
+    fig.savefig(path, format="png", metadata={"Software": None})
+    return path
+
+
+# ---------------------------------------------------------------- the page
+
+
+def _pct(v: float | None) -> str:
+    return "n/a" if v is None else f"{v:+.1f} %"
+
+
+def _ratio(v: float | None) -> str:
+    if v is None:
+        return "n/a"
+    return f"{100 * v:.0f} %" if v >= 0.1 else f"{100 * v:.1f} %"
+
+
+def _md_table(head: list[str], rows: list[list[str]], align: str | None = None) -> str:
+    align = align or "l" + "r" * (len(head) - 1)
+    rule = "|" + "|".join(":---" if a == "l" else "---:" for a in align) + "|"
+    return "\n".join(["| " + " | ".join(head) + " |", rule] + ["| " + " | ".join(r) + " |" for r in rows])
+
+
+def bd_markdown(results: dict, rows: list[dict]) -> str:
+    """The BD-rate table: per sequence, for each variant D1 and D2 BD-rate and time ratios.
+
+    In every row the best BD-rate of each metric is bold when it beats the anchor, and the
+    "best" columns name the variant with the fewest bits (the anchor when nothing beats it).
+    """
+    anchor = results["anchor"]
+    tests = [v["name"] for v in results["variants"] if v["name"] != anchor]
+    head = ["Sequence"]
+    for v in tests:
+        head += [f"{v} D1", f"{v} D2", f"{v} enc", f"{v} dec"]
+    head += ["best D1", "best D2"]
+    body, notes = [], []
+    for seq in [s["name"] for s in results["sequences"]] + ["Average"]:
+        mine = {r["variant"]: r for r in rows if r["sequence"] == seq}
+        cells = [f"**{seq}**" if seq == "Average" else seq]
+        best = {}
+        for m in ("d1", "d2"):
+            vals = {v: mine[v][f"{m}_bd"] for v in tests if mine[v][f"{m}_bd"] is not None}
+            winner = min(vals, key=vals.get) if vals else None
+            best[m] = winner if winner is not None and vals[winner] < 0 else anchor
+        for v in tests:
+            r = mine[v]
+            for m in ("d1", "d2"):
+                text = _pct(r[f"{m}_bd"])
+                if r[f"{m}_note"]:
+                    notes.append(f"{seq}, {v}, {m.upper()}: {r[f'{m}_note']}")
+                    text += f" [{len(notes)}]"
+                cells.append(f"**{text}**" if best[m] == v else text)
+            cells += [_ratio(r["enc_ratio"]), _ratio(r["dec_ratio"])]
+        cells += [f"**{best['d1']}**", f"**{best['d2']}**"]
+        body.append(cells)
+    out = _md_table(head, body, "l" + "r" * (len(head) - 3) + "ll")
+    out += "\n\n" + swapped_markdown(results, rows)
+    if notes:
+        out += "\n\n" + "  \n".join(f"[{i}] {n}" for i, n in enumerate(notes, 1))
+    return out
+
+
+def swapped_markdown(results: dict, rows: list[dict]) -> str:
+    """The same comparison read the other way: the anchor's BD-rate against each variant.
+
+    Swapping anchor and test negates the mean log-rate difference over the same PSNR
+    interval, so the swapped BD-rate is exactly 1 / (1 + b) - 1 for each sequence; the
+    average is again the arithmetic mean over sequences.
+    """
+    anchor = results["anchor"]
+    lines = []
+    for v in [v["name"] for v in results["variants"] if v["name"] != anchor]:
+        mine = [r for r in rows if r["variant"] == v and r["sequence"] != "Average"]
+        parts = []
+        for m in ("d1", "d2"):
+            vals = [100 * (1 / (1 + r[f"{m}_bd"] / 100) - 1) for r in mine if r[f"{m}_bd"] is not None]
+            parts.append(f"{m.upper()} {_pct(float(np.mean(vals)) if vals else None)}")
+        lines.append(f"Read the other way, {anchor} against {v}: {', '.join(parts)} (mean over sequences).")
+    return "  \n".join(lines)
+
+
+def rd_markdown(results: dict, sequence: str) -> str:
+    """The measured points of one sequence: every variant and rate point."""
+    rows = []
+    for v in results["variants"]:
+        for r in rd_points(results, sequence, v["name"]):
+            rows.append([v["name"], r["rate"], f"{r['bytes'] / r['frames']:.0f}", f"{r['mbps']:.3f}",
+                         f"{r['d1_psnr']:.2f}", f"{r['d2_psnr']:.2f}", f"{1000 * r['encode_s_per_frame']:.1f}",
+                         f"{1000 * r['decode_s_per_frame']:.1f}"])
+    return _md_table(["variant", "rate", "bytes/frame", "Mbit/s", "D1 PSNR (dB)", "D2 PSNR (dB)", "enc ms/frame",
+                      "dec ms/frame"], rows, "llrrrrrr")
+
+
+def conditions_markdown(results: dict) -> str:
+    """Sequences (frames, peak) and variants (codec, rate point options)."""
+    seq = _md_table(["sequence", "frames", "first frame (relative to the experiment file)", "PSNR peak"],
+                    [[s["name"], str(s["frames"]), f"`{s['first']}`",
+                      "box side" if s["peak"] is None else f"{s['peak']:g}"] for s in results["sequences"]], "lrll")
+    var_rows = []
+    for v in results["variants"]:
+        common = ", ".join(f"{k}={_opt(x)}" for k, x in v["options"].items()) or "-"
+        rates = "; ".join(f"{n}: " + ", ".join(f"{k}={_opt(x)}" for k, x in o.items() if v["options"].get(k) != x)
+                          for n, o in v["rates"].items())
+        name = v["name"] + (" (anchor)" if v["name"] == results["anchor"] else "")
+        var_rows.append([name, v["codec"], common, rates])
+    var = _md_table(["variant", "codec", "options", "rate points"], var_rows, "llll")
+    return seq + "\n\n" + var
+
+
+def _opt(x) -> str:
+    if isinstance(x, float) and x > 0 and x < 1 and abs(1 / x - round(1 / x)) < 1e-9:
+        return f"1/{round(1 / x)}"  # base ratios read better as fractions
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
+
+def markdown(results: dict, images: dict[tuple[str, str], str], command: str | None = None) -> str:
+    """The whole page; ``images`` maps (sequence, metric) to a path relative to the page."""
+    runs = results["runs"]
+    frames = sum(r["frames"] for r in runs)
+    enc_s = sum(r["encode_s_per_frame"] * r["frames"] for r in runs)
+    dec_s = sum(r["decode_s_per_frame"] * r["frames"] for r in runs)
+    versions = sorted({f"{r['codec']}: {r['codec_version']}" for r in runs})
+    parts = [
+        f"# Rate-distortion results: {results['experiment']}",
+        "",
+        "Every figure on this page was measured by `dynmesh eval` "
+        + (f"(`{command}`) " if command else "")
+        + "and is recomputed from the saved results when the page is rebuilt. "
+        f"{len(runs)} runs, {frames} coded frames; total codec time {enc_s:.1f} s encoding, {dec_s:.1f} s decoding.",
+        "",
+        f"Date: {datetime.date.today().isoformat()}  ",
+        f"Machine: {_machine()}  ",
+        "Codecs: " + "; ".join(versions),
+        "",
+        f"## BD-rate against {results['anchor']}",
+        "",
+        "Bjontegaard delta rate (PCHIP over log10 rate, on the PSNR range both curves cover; negative = fewer "
+        "bits than the anchor for the same PSNR) for D1 and D2, and encode (enc) / decode (dec) time of the "
+        "variant as a percentage of the anchor's. Bold: the best BD-rate of the row when it beats the anchor; "
+        "*best* names the variant needing the fewest bits.",
+        "",
+        bd_markdown(results, bd_rows(results)),
+        "",
+        "## How it was measured",
+        "",
+        "- **Distortion** (DESIGN.md section 3, the V-DMC common test conditions as in mmetric): both meshes are "
+        f"sampled on one grid (grid size {results['grid_size']}) laid over the bounding box of the source frames of "
+        "the run; D1 is point-to-point and D2 point-to-plane (the nearest point's own normal), symmetric (the larger "
+        "MSE of the two directions); PSNR = 10 log10(3 p^2 / MSE).",
+        "- **Peak p** (`src-max-bb-len`): the value the experiment file gives for the sequence (the shipped "
+        "experiment uses the largest side of the whole source sequence's bounding box as `shared/data/README.md` "
+        "lists it, rounded to 2 decimals there), else the largest side of the bounding box of the frames measured; "
+        "per sequence in *Conditions* below.",
+        "- **Sequence figure**: the mean over frames of the per-frame PSNR (not the PSNR of the mean MSE).",
+        f"- **Rate**: every byte of the stream (dynmesh: header and all frame units; Draco: the sum of its "
+        f"per-frame buffers), as Mbit/s at {results['fps']:g} frames per second. Geometry only.",
+        "- **Draco** codes each frame as an independent mesh (DracoPy, positions quantized over the frame's own box); "
+        "it reorders and merges vertices, and the harness measures exactly what Draco decodes, like any decoder "
+        "output.",
+        "- **Times** are wall-clock seconds per frame of the encode and decode calls alone (no file reading, no "
+        "metric), on the machine above, with as many runs in parallel as `--jobs` said and whatever else the machine "
+        "was running; dynmesh uses several threads, Draco one. They are indicative and not part of any "
+        "determinism check. Time ratios: geometric mean over rate points per sequence, geometric mean over "
+        "sequences in the average row. BD-rate average: arithmetic mean over sequences.",
+        "",
+        "## Conditions",
+        "",
+        conditions_markdown(results),
+        "",
+        "## Rate-distortion curves and points",
+    ]
+    for s in results["sequences"]:
+        parts += ["", f"### {s['name']}", ""]
+        pics = [f"![{s['name']} {label}]({images[(s['name'], key)]})" for key, label in METRICS
+                if (s["name"], key) in images]
+        if pics:
+            parts += [" ".join(pics), ""]
+        parts.append(rd_markdown(results, s["name"]))
+    return "\n".join(parts) + "\n"
+
+
+def _machine() -> str:
+    cpu = platform.processor() or "unknown CPU"
+    try:
+        cpu = re.search(r"model name\s*:\s*(.*)", Path("/proc/cpuinfo").read_text()).group(1)
+    except (OSError, AttributeError):
+        pass
+    return f"{cpu}, {os.cpu_count()} cores, {platform.system()} {platform.release()}, Python {platform.python_version()}"
+
+
+def write_report(results: dict, report_dir: str | os.PathLike, report_file: str = "results.md",
+                 command: str | None = None) -> Path:
+    """Writes REPORT_DIR/REPORT_FILE and its plots in REPORT_DIR/<report file stem>/
+    (one PNG per sequence and metric, referenced relatively). Returns the page's path."""
+    from .api import write_bytes_atomic
+
+    report_dir = Path(report_dir)
+    page = report_dir / report_file
+    img_dir = report_dir / Path(report_file).stem
+    images = {}
+    for s in results["sequences"]:
+        for key, label in METRICS:
+            png = plot_rd(results, s["name"], key, img_dir / f"rd_{s['name']}_{label.lower()}.png")
+            images[(s["name"], key)] = png.relative_to(report_dir).as_posix()
+    write_bytes_atomic(page, markdown(results, images, command).encode())
+    return page
