@@ -53,10 +53,16 @@ def test_human_output_has_a_per_frame_table(tmp_path, frames_dir):
 def test_start_and_count_select_frames(tmp_path, frames_dir):
     enc = json.loads(run("encode", frames_dir, "-o", tmp_path / "s.dmsh", "--start", "1", "--count", "2", "--json").stdout)
     assert [f["input"].endswith(n) for f, n in zip(enc["frames"], ["f1.obj", "f2.obj"])] == [True, True]
+    out = tmp_path / "out"
+    run("decode", tmp_path / "s.dmsh", "-o", out, "-q")
+    mismatch = run("metrics", frames_dir, out, check=False)
+    assert mismatch.returncode == 1 and "3 reference frames but 2 decoded" in mismatch.stderr
+    m = json.loads(run("metrics", frames_dir, out, "--start", "1", "--count", "2", "--json").stdout)
+    assert len(m["frames"]) == 2 and m["d1_psnr"] > 50
 
 
 def test_every_command_has_help():
-    for cmd in ["encode", "decode", "info", "metrics", "synth", "demo"]:
+    for cmd in ["encode", "decode", "info", "metrics", "synth", "demo", "eval"]:
         assert "usage" in run(cmd, "--help").stdout
 
 

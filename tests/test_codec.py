@@ -18,7 +18,9 @@ def test_decoder_reproduces_the_encoder_reconstruction_bit_for_bit(sequence):
         assert np.array_equal(rec.positions.view(np.uint64), dec.positions.view(np.uint64))
 
 
-@pytest.mark.parametrize("options", [dict(scheme="loop"), dict(normal_only=False), dict(subdiv=0), dict(bits=16, subdiv=2), dict(base_bits=8), dict(bits=11, base_bits=11)])
+@pytest.mark.parametrize("options", [dict(scheme="loop"), dict(normal_only=False), dict(subdiv=0), dict(bits=16, subdiv=2),
+                                     dict(base_bits=8), dict(bits=11, base_bits=11), dict(aq=False),
+                                     dict(aq_alpha=1.5, aq_delta=0.3, aq_h=5), dict(intra_period=1)])
 def test_round_trip_holds_for_every_option(options, sequence):
     result = dynmesh.encode_frames(sequence[:2], keep_reconstructions=True, **options)
     for rec, dec in zip(result.reconstructions, dynmesh.decode(result.data)):
@@ -51,9 +53,37 @@ def test_encoding_is_deterministic(sequence):
     assert dynmesh.encode(sequence) == dynmesh.encode(sequence)
 
 
+def frame_types(data: bytes) -> list[str]:
+    return [f["type"] for f in dynmesh.info(data)["frames"]]
+
+
+def test_constant_topology_is_predicted_within_the_intra_period(sequence):
+    frames = sequence + sequence[::-1]
+    result = dynmesh.encode_frames(frames, keep_reconstructions=True, qp=22, intra_period=4)
+    assert frame_types(result.data)[0] == "I" and frame_types(result.data)[4] == "I"
+    assert frame_types(result.data).count("P") >= 3
+    assert [s["type"] for s in result.frames] == frame_types(result.data)
+    for rec, dec in zip(result.reconstructions, dynmesh.decode(result.data)):
+        assert np.array_equal(rec.positions, dec.positions) and np.array_equal(rec.faces, dec.faces)
+    all_intra = dynmesh.encode(frames, qp=22, intra_period=1)
+    assert set(frame_types(all_intra)) == {"I"}
+    assert len(result.data) < len(all_intra)
+
+
+@pytest.mark.parametrize("inter", ["none", "nns", "nns+me", "nns+me+qem"])
+def test_changing_topology_is_predicted_only_through_an_anchor(inter):
+    frames = [uv_sphere(16, 24), uv_sphere(18, 22, center=(0.02, 0, 0)), uv_sphere(17, 26, center=(0.04, 0, 0))]
+    result = dynmesh.encode_frames(frames, keep_reconstructions=True, qp=22, inter=inter, rd_slope=100)
+    types = frame_types(result.data)
+    assert types == (["I", "I", "I"] if inter == "none" else ["I", "P", "P"])
+    assert not any(s["same_topology"] for s in result.frames)
+    for rec, dec in zip(result.reconstructions, dynmesh.decode(result.data)):
+        assert np.array_equal(rec.positions, dec.positions)
+
+
 def test_frames_with_changing_topology_are_coded_independently():
     frames = [uv_sphere(12, 16), uv_sphere(18, 20, center=(0.1, 0, 0)), uv_sphere(9, 30, radius=0.8)]
-    decoded = list(dynmesh.decode(dynmesh.encode(frames, qp=16)))
+    decoded = list(dynmesh.decode(dynmesh.encode(frames, qp=16, inter="none")))
     for f, d in zip(frames, decoded):
         centre = (f.positions.max(axis=0) + f.positions.min(axis=0)) / 2
         radius = np.linalg.norm(d.positions - centre, axis=1)
@@ -69,17 +99,18 @@ def test_info_reports_header_and_frame_sizes(sequence):
     assert i["header"]["base_bits"] == dynmesh.DEFAULTS["base_bits"]
     assert [f["qp"] for f in i["frames"]] == [30] * len(sequence)
     header_bytes = len(data) - sum(f["bytes"] for f in i["frames"])
-    assert 0 < header_bytes < 64
+    assert 0 < header_bytes < 100
 
 
-@pytest.mark.parametrize("options", [dict(qp=200), dict(base_ratio=0), dict(base_ratio=1.5), dict(subdiv=9), dict(bits=3), dict(base_bits=13), dict(bits=10, base_bits=11), dict(scheme="cubic")])
+@pytest.mark.parametrize("options", [dict(qp=200), dict(base_ratio=0), dict(base_ratio=1.5), dict(subdiv=9), dict(bits=3), dict(base_bits=13), dict(bits=10, base_bits=11), dict(scheme="cubic"),
+                                     dict(intra_period=0), dict(inter="octree"), dict(aq_h=0), dict(aq_delta=1.5), dict(qp="high")])
 def test_bad_options_raise_value_error(options, sphere):
     with pytest.raises(ValueError):
         dynmesh.encode([sphere], **options)
 
 
 def test_unknown_option_is_refused(sphere):
-    with pytest.raises(TypeError, match="qpp"):
+    with pytest.raises(ValueError, match="qpp"):
         dynmesh.encode([sphere], qpp=3)
 
 

@@ -10,9 +10,9 @@ use pyo3::exceptions::{PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
-use dynmesh::bitstream::{FrameType, SequenceHeader, Unit};
+use dynmesh::bitstream::{FrameType, SequenceHeader};
 use dynmesh::decoder;
-use dynmesh::encoder::{self, EncoderConfig, FrameStats};
+use dynmesh::encoder::{EncoderConfig, FrameStats, InterMode, SequenceEncoder};
 use dynmesh::error::DecodeError as CoreDecodeError;
 use dynmesh::mesh::Mesh;
 use dynmesh::metrics;
@@ -79,8 +79,20 @@ fn scheme_name(s: Scheme) -> &'static str {
     }
 }
 
+fn frame_type_name(t: Option<FrameType>) -> &'static str {
+    match t {
+        Some(FrameType::Intra) => "I",
+        Some(FrameType::Predicted) => "P",
+        None => "?",
+    }
+}
+
 fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
+    d.set_item("type", frame_type_name(s.frame_type))?;
+    d.set_item("same_topology", s.same_topology)?;
+    d.set_item("rejected_bytes", s.rejected_bytes)?;
+    d.set_item("anchor_seconds", s.anchor_seconds)?;
     d.set_item("bytes", s.bytes)?;
     d.set_item("base_bytes", s.base_bytes)?;
     d.set_item("displacement_bytes", s.displacement_bytes)?;
@@ -102,49 +114,81 @@ fn header_dict<'py>(py: Python<'py>, h: &SequenceHeader) -> PyResult<Bound<'py, 
     d.set_item("subdiv_iterations", h.subdiv_iterations)?;
     d.set_item("scheme", scheme_name(h.scheme))?;
     d.set_item("components", h.components)?;
+    d.set_item("aq", h.aq.is_some())?;
+    if let Some(aq) = h.aq {
+        d.set_item("aq_alpha", aq.alpha)?;
+        d.set_item("aq_delta", aq.delta)?;
+        d.set_item("aq_h", aq.h)?;
+    }
     Ok(d)
 }
 
-/// Encodes the frames of one sequence; create it with the sequence's bounding box.
+/// The encoder configuration from a dict of options named as in [`default_options`];
+/// missing keys keep their defaults, unknown keys are an error.
+fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
+    let mut c = EncoderConfig::default();
+    let mut aq_on = c.aq.is_some();
+    let mut aq = c.aq.unwrap_or_default();
+    for (key, value) in options.iter() {
+        let key: String = key.extract()?;
+        match key.as_str() {
+            "qp" => c.qp = value.extract()?,
+            "base_ratio" => c.base_ratio = value.extract()?,
+            "subdiv" => c.subdiv_iterations = value.extract()?,
+            "scheme" => c.scheme = scheme_of(&value.extract::<String>()?)?,
+            "bits" => c.bits = value.extract()?,
+            "base_bits" => c.base_bits = value.extract()?,
+            "normal_only" => c.normal_only = value.extract()?,
+            "intra_period" => c.intra_period = value.extract()?,
+            "inter" => {
+                let name: String = value.extract()?;
+                c.inter = InterMode::from_name(&name).ok_or_else(|| {
+                    PyValueError::new_err(format!("unknown inter mode {name:?} (one of {})", InterMode::NAMES.join(", ")))
+                })?
+            }
+            "rd_slope" => c.rd_slope_db = value.extract()?,
+            "aq" => aq_on = value.extract()?,
+            "aq_alpha" => aq.alpha = value.extract()?,
+            "aq_delta" => aq.delta = value.extract()?,
+            "aq_h" => aq.h = value.extract()?,
+            _ => return Err(PyValueError::new_err(format!("unknown encoder option {key:?}"))),
+        }
+    }
+    c.aq = aq_on.then_some(aq);
+    c.validate().map_err(|e| PyValueError::new_err(e.0))?;
+    Ok(c)
+}
+
+/// Encodes the frames of one sequence in order; create it with the sequence's bounding box.
 #[pyclass(module = "dynmesh._core")]
 struct Encoder {
-    header: SequenceHeader,
-    config: EncoderConfig,
+    inner: SequenceEncoder,
 }
 
 #[pymethods]
 impl Encoder {
     #[new]
-    #[pyo3(signature = (frame_count, box_min, box_max, *, qp, base_ratio, subdiv, scheme, bits, base_bits, normal_only))]
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        frame_count: u32, box_min: [f64; 3], box_max: [f64; 3], qp: i32, base_ratio: f64, subdiv: u32, scheme: &str, bits: u32,
-        base_bits: u32, normal_only: bool,
-    ) -> PyResult<Self> {
-        let config = EncoderConfig { qp, base_ratio, subdiv_iterations: subdiv, scheme: scheme_of(scheme)?, bits, base_bits, normal_only };
-        config.validate().map_err(|e| PyValueError::new_err(e.0))?;
-        if !(box_min.iter().chain(&box_max).all(|c| c.is_finite())) {
-            return Err(PyValueError::new_err("bounding box must be finite"));
-        }
-        Ok(Self { header: config.header(frame_count, box_min, box_max), config })
+    fn new(frame_count: u32, box_min: [f64; 3], box_max: [f64; 3], options: &Bound<'_, PyDict>) -> PyResult<Self> {
+        let config = config_of(options)?;
+        let inner = SequenceEncoder::new(config, frame_count, box_min, box_max).map_err(|e| PyValueError::new_err(e.0))?;
+        Ok(Self { inner })
     }
 
     /// The serialized sequence header.
     fn header_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        PyBytes::new(py, &dynmesh::bitstream::write_header(&self.header))
+        PyBytes::new(py, &dynmesh::bitstream::write_header(self.inner.header()))
     }
 
-    /// Encodes one frame; returns (unit bytes, stats dict, (positions, faces) of the reconstruction).
+    /// Encodes the next frame; returns (unit bytes, stats dict, (positions, faces) of the reconstruction).
     fn encode_frame<'py>(
-        &self,
+        &mut self,
         py: Python<'py>,
         positions: PyReadonlyArray2<'py, f64>,
         faces: PyReadonlyArray2<'py, i64>,
     ) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyDict>, MeshArrays<'py>)> {
         let mesh = mesh_of(&positions, &faces)?;
-        let out = py
-            .allow_threads(|| encoder::encode_intra(&self.header, &self.config, &mesh))
-            .map_err(|e| PyValueError::new_err(e.0))?;
+        let inner = &mut self.inner;
+        let out = py.allow_threads(|| inner.encode(&mesh)).map_err(|e| PyValueError::new_err(e.0))?;
         Ok((PyBytes::new(py, &out.unit), stats_dict(py, &out.stats)?, arrays_of(py, out.reconstruction)))
     }
 }
@@ -152,55 +196,43 @@ impl Encoder {
 /// A parsed stream whose frames can be decoded in any order.
 #[pyclass(module = "dynmesh._core")]
 struct Decoder {
-    data: Vec<u8>,
-    header: SequenceHeader,
-    /// (type, payload start, payload length, unit length) per frame.
-    units: Vec<(FrameType, usize, usize, usize)>,
+    inner: decoder::Decoder,
 }
 
 #[pymethods]
 impl Decoder {
     #[new]
     fn new(data: &[u8]) -> PyResult<Self> {
-        let stream = decoder::open(data).map_err(decode_error)?;
-        let units = stream
-            .units
-            .iter()
-            .map(|u| (u.frame_type, u.offset as usize, u.payload.len(), u.payload.len() + dynmesh::bitstream::UNIT_OVERHEAD))
-            .collect();
-        Ok(Self { data: data.to_vec(), header: stream.header, units })
+        Ok(Self { inner: decoder::Decoder::new(data.to_vec()).map_err(decode_error)? })
     }
 
     #[getter]
-    fn frame_count(&self) -> usize {
-        self.units.len()
+    fn frame_count(&self) -> u32 {
+        self.inner.frame_count()
     }
 
     /// Sequence header fields.
     fn header<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        header_dict(py, &self.header)
+        header_dict(py, self.inner.header())
     }
 
-    /// Per frame: type and byte sizes of the unit and its parts.
-    fn frame_info<'py>(&self, py: Python<'py>, index: usize) -> PyResult<Bound<'py, PyDict>> {
-        let &(t, start, len, unit_len) = self.units.get(index).ok_or_else(|| PyValueError::new_err("no such frame"))?;
-        let unit = Unit { frame_type: t, payload: &self.data[start..start + len], offset: start as u64 };
-        let p = decoder::read_intra_payload(&unit, index as u32).map_err(decode_error)?;
+    /// Per frame: type, reference, QP and byte sizes of the unit and its parts.
+    fn frame_info<'py>(&self, py: Python<'py>, index: u32) -> PyResult<Bound<'py, PyDict>> {
+        let i = self.inner.frame_info(index).map_err(decode_error)?;
         let d = PyDict::new(py);
-        d.set_item("type", "I")?;
-        d.set_item("bytes", unit_len)?;
-        d.set_item("qp", p.qp)?;
-        d.set_item("base_bytes", p.base.len())?;
-        d.set_item("displacement_bytes", p.coefficients.len())?;
+        d.set_item("type", frame_type_name(Some(i.frame_type)))?;
+        d.set_item("reference", i.reference)?;
+        d.set_item("bytes", i.bytes)?;
+        d.set_item("qp", i.qp)?;
+        d.set_item("base_bytes", i.base_bytes)?;
+        d.set_item("displacement_bytes", i.displacement_bytes)?;
         Ok(d)
     }
 
     /// Decodes frame `index`; returns (positions, faces).
-    fn decode_frame<'py>(&self, py: Python<'py>, index: usize) -> PyResult<MeshArrays<'py>> {
-        let &(t, start, len, _) = self.units.get(index).ok_or_else(|| PyValueError::new_err(format!("no frame {index}")))?;
-        let unit = Unit { frame_type: t, payload: &self.data[start..start + len], offset: start as u64 };
-        let header = &self.header;
-        let mesh = py.allow_threads(|| decoder::decode_unit(header, &unit, index as u32)).map_err(decode_error)?;
+    fn decode_frame<'py>(&mut self, py: Python<'py>, index: u32) -> PyResult<MeshArrays<'py>> {
+        let inner = &mut self.inner;
+        let mesh = py.allow_threads(|| inner.decode_frame(index)).map_err(decode_error)?;
         Ok(arrays_of(py, mesh))
     }
 }
@@ -247,6 +279,14 @@ fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("bits", c.bits)?;
     d.set_item("base_bits", c.base_bits)?;
     d.set_item("normal_only", c.normal_only)?;
+    d.set_item("intra_period", c.intra_period)?;
+    d.set_item("inter", c.inter.name())?;
+    d.set_item("rd_slope", c.rd_slope_db)?;
+    let aq = c.aq.unwrap_or_default();
+    d.set_item("aq", c.aq.is_some())?;
+    d.set_item("aq_alpha", aq.alpha)?;
+    d.set_item("aq_delta", aq.delta)?;
+    d.set_item("aq_h", aq.h)?;
     Ok(d)
 }
 

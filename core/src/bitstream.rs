@@ -7,6 +7,7 @@
 
 use crate::error::DecodeError;
 use crate::grid::{Grid, BITS_RANGE};
+use crate::quantize::AqParams;
 use crate::subdivide::Scheme;
 
 pub const MAGIC: &[u8; 4] = b"DMSH";
@@ -28,12 +29,17 @@ pub struct SequenceHeader {
     pub scheme: Scheme,
     /// 1: only the normal component of each displacement is coded; 3: all of (n, t, b).
     pub components: u8,
+    /// Adaptive displacement quantization, if on.
+    pub aq: Option<AqParams>,
 }
 
 /// Kind of a frame unit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FrameType {
+    /// Coded on its own: the base mesh with its connectivity.
     Intra = 0,
+    /// The base mesh is a reference frame's base mesh moved: same connectivity, coded motion.
+    Predicted = 1,
 }
 
 /// One frame unit as found in the stream.
@@ -147,6 +153,11 @@ pub fn write_header(h: &SequenceHeader) -> Vec<u8> {
         Scheme::Loop => 1,
     });
     w.u8(h.components);
+    let aq = h.aq.unwrap_or_default();
+    w.u8(h.aq.is_some() as u8);
+    w.f64(aq.alpha);
+    w.f64(aq.delta);
+    w.f64(aq.h);
     let crc = crc32fast::hash(&w.bytes);
     w.u32(crc);
     w.bytes
@@ -170,6 +181,8 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
     let subdiv_iterations = r.u8("subdivision iterations")? as u32;
     let scheme_code = r.u8("subdivision scheme")?;
     let components = r.u8("displacement components")?;
+    let aq_flag = r.u8("adaptive quantization flag")?;
+    let aq = AqParams { alpha: r.f64("AQ alpha")?, delta: r.f64("AQ delta")?, h: r.f64("AQ h")? };
     let end = data.len() - r.remaining();
     let crc = r.u32("header CRC")?;
     if crc != crc32fast::hash(&data[..end]) {
@@ -187,7 +200,11 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
         subdiv_iterations,
         scheme,
         components,
+        aq: (aq_flag == 1).then_some(aq),
     };
+    if aq_flag > 1 || (aq_flag == 1 && !aq.is_valid()) {
+        return Err(DecodeError::new(None, 46, "invalid adaptive quantization parameters"));
+    }
     validate_header(&header).map_err(|e| DecodeError::new(None, 4, e))?;
     Ok((header, end + 4))
 }
@@ -253,6 +270,7 @@ fn read_unit(data: &[u8], pos: usize, frame: u32) -> Result<(Unit<'_>, usize), D
     }
     let frame_type = match t {
         0 => FrameType::Intra,
+        1 => FrameType::Predicted,
         _ => return Err(DecodeError::new(Some(frame), pos as u64, format!("unknown frame type {t}"))),
     };
     Ok((Unit { frame_type, payload, offset }, end + 4))
@@ -270,6 +288,7 @@ mod tests {
             subdiv_iterations: 3,
             scheme: Scheme::Midpoint,
             components: 1,
+            aq: Some(AqParams { alpha: 1.25, delta: 0.25, h: 6.0 }),
         }
     }
 

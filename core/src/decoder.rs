@@ -1,7 +1,9 @@
 //! The decoder: frame units back to meshes.
 //!
 //! [`reconstruct`] is the single place where quantized coefficients become positions; the
-//! encoder calls it too, which is what makes the two agree bit for bit.
+//! encoder calls it too, which is what makes the two agree bit for bit. Predicted frames
+//! take their base mesh from the frame they name, so [`Decoder`] walks back to the intra
+//! frame that starts the chain (seeking) and keeps the last base mesh it made.
 
 use crate::basecoder;
 use crate::bitstream::{self, FrameType, Reader, SequenceHeader, Unit};
@@ -11,6 +13,7 @@ use crate::ec;
 use crate::error::DecodeError;
 use crate::grid::Grid;
 use crate::mesh::Mesh;
+use crate::motion;
 use crate::quantize;
 use crate::subdivide::{subdivide, Subdivision};
 use crate::transform;
@@ -30,74 +33,201 @@ pub fn face_allowance(unit_bytes: usize) -> usize {
     unit_bytes.saturating_mul(FACES_PER_UNIT_BYTE).clamp(MIN_FACE_ALLOWANCE, MAX_OUTPUT_FACES)
 }
 
-/// What the payload of an intra frame carries.
-pub struct IntraPayload<'a> {
+/// The fields of a frame payload. Intra: `qp`, base mesh block, coefficient block.
+/// Predicted: reference distance, `qp`, motion block, coefficient mode, coefficient block.
+pub struct Payload<'a> {
+    /// Frames back to the reference (predicted frames only; 0 for intra).
+    pub reference_distance: u32,
     pub qp: i32,
+    /// The base mesh block (intra) or the motion block (predicted).
     pub base: &'a [u8],
     pub base_offset: u64,
+    /// Predicted frames: the coefficients are differences from the reference's.
+    pub coefficients_predicted: bool,
     pub coefficients: &'a [u8],
     pub coefficients_offset: u64,
 }
 
-/// A parsed stream: its header and its frame units (checked lengths and CRCs).
-pub struct Stream<'a> {
-    pub header: SequenceHeader,
-    pub units: Vec<Unit<'a>>,
+/// What `frame_info` tells about a frame without decoding it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameInfo {
+    pub frame_type: FrameType,
+    pub reference: Option<u32>,
+    pub qp: i32,
+    pub bytes: usize,
+    pub base_bytes: usize,
+    pub displacement_bytes: usize,
 }
 
-/// Parses the container; frames are decoded one by one with [`decode_frame`].
-pub fn open(data: &[u8]) -> Result<Stream<'_>, DecodeError> {
-    let (header, start) = bitstream::read_header(data)?;
-    let units = bitstream::read_units(data, start, header.frame_count)?;
-    Ok(Stream { header, units })
+/// What a predicted frame takes from its reference: the base mesh (positions on the base
+/// grid, faces) and the quantized displacement coefficients.
+#[derive(Clone)]
+struct State {
+    positions: Vec<[u32; 3]>,
+    faces: Vec<[u32; 3]>,
+    coefficients: Vec<i32>,
 }
 
-/// Decodes frame `index` of `stream` into a mesh in the input's units.
-pub fn decode_frame(stream: &Stream, index: u32) -> Result<Mesh, DecodeError> {
-    let unit = stream
-        .units
-        .get(index as usize)
-        .ok_or_else(|| DecodeError::new(Some(index), 0, "no such frame"))?;
-    decode_unit(&stream.header, unit, index)
+/// Position of a frame unit inside the stream.
+#[derive(Debug, Clone, Copy)]
+struct Span {
+    frame_type: FrameType,
+    offset: usize,
+    len: usize,
 }
 
-/// Decodes one frame unit of a stream with header `h`; `index` names it in errors.
-pub fn decode_unit(h: &SequenceHeader, unit: &Unit, index: u32) -> Result<Mesh, DecodeError> {
-    match unit.frame_type {
-        FrameType::Intra => decode_intra(h, unit, index),
+/// A checked stream whose frames can be decoded in any order. Predicted frames are decoded
+/// from the intra frame before them; the last decoded frame's state is kept, so decoding
+/// in order costs one frame's work per frame.
+pub struct Decoder {
+    data: Vec<u8>,
+    header: SequenceHeader,
+    spans: Vec<Span>,
+    last: Option<(u32, State)>,
+}
+
+impl Decoder {
+    /// Parses the header and splits the frame units, checking their lengths and CRCs.
+    pub fn new(data: Vec<u8>) -> Result<Self, DecodeError> {
+        let (header, start) = bitstream::read_header(&data)?;
+        let units = bitstream::read_units(&data, start, header.frame_count)?;
+        let spans = units
+            .iter()
+            .map(|u| Span { frame_type: u.frame_type, offset: u.offset as usize, len: u.payload.len() })
+            .collect();
+        Ok(Self { header, spans, data, last: None })
+    }
+
+    pub fn header(&self) -> &SequenceHeader {
+        &self.header
+    }
+
+    pub fn frame_count(&self) -> u32 {
+        self.spans.len() as u32
+    }
+
+    /// Type, reference, QP and sizes of frame `index`.
+    pub fn frame_info(&self, index: u32) -> Result<FrameInfo, DecodeError> {
+        let unit = self.unit(index)?;
+        let p = read_payload(&unit, index)?;
+        Ok(FrameInfo {
+            frame_type: unit.frame_type,
+            reference: (unit.frame_type == FrameType::Predicted).then(|| index - p.reference_distance),
+            qp: p.qp,
+            bytes: unit.payload.len() + bitstream::UNIT_OVERHEAD,
+            base_bytes: p.base.len(),
+            displacement_bytes: p.coefficients.len(),
+        })
+    }
+
+    /// Decodes frame `index` into a mesh in the input's units.
+    pub fn decode_frame(&mut self, index: u32) -> Result<Mesh, DecodeError> {
+        let mut chain = vec![index];
+        loop {
+            let f = *chain.last().unwrap();
+            if chain.len() > 1 && self.last.as_ref().is_some_and(|(i, _)| *i == f) {
+                break;
+            }
+            let unit = self.unit(f)?;
+            if unit.frame_type == FrameType::Intra {
+                break;
+            }
+            chain.push(f - read_payload(&unit, f)?.reference_distance);
+        }
+        let mut reference: Option<State> = None;
+        for &f in chain[1..].iter().rev() {
+            reference = Some(match (reference.take(), &self.last) {
+                (None, Some((i, cached))) if *i == f => cached.clone(),
+                (r, _) => self.decode_state(f, r.as_ref())?.0,
+            });
+        }
+        let (state, sub, qp) = self.decode_state(index, reference.as_ref())?;
+        let frames = displace::local_frames(&sub.positions, &sub.faces);
+        let mesh = reconstruct(&self.header, &sub, &frames, &state.coefficients, qp);
+        self.last = Some((index, state));
+        Ok(mesh)
+    }
+
+    fn unit(&self, index: u32) -> Result<Unit<'_>, DecodeError> {
+        let s = self.spans.get(index as usize).ok_or_else(|| DecodeError::new(Some(index), 0, "no such frame"))?;
+        Ok(Unit { frame_type: s.frame_type, payload: &self.data[s.offset..s.offset + s.len], offset: s.offset as u64 })
+    }
+
+    /// Decodes frame `f`'s base mesh and coefficients (a predicted frame on `reference`);
+    /// also returns its subdivided base mesh and QP.
+    fn decode_state(&self, f: u32, reference: Option<&State>) -> Result<(State, Subdivision, i32), DecodeError> {
+        let unit = self.unit(f)?;
+        let p = read_payload(&unit, f)?;
+        let h = &self.header;
+        let error = |offset: u64, reason: &str| DecodeError::new(Some(f), offset, reason);
+        let (positions, faces) = match (unit.frame_type, reference) {
+            (FrameType::Intra, _) => basecoder::decode_base(p.base, h.base_bits)
+                .map_err(|e| DecodeError::new(Some(f), p.base_offset, format!("base mesh: {e}")))?,
+            (FrameType::Predicted, Some(r)) => {
+                let mut dec = ec::Decoder::new(p.base);
+                let positions = motion::decode_motion(&mut dec, &r.positions, &r.faces, h.base_bits)
+                    .ok_or_else(|| error(p.base_offset, "base mesh motion is truncated or corrupt"))?;
+                (positions, r.faces.clone())
+            }
+            (FrameType::Predicted, None) => return Err(error(p.base_offset, "predicted frame without its reference")),
+        };
+        let too_big = faces.len().saturating_mul(1usize << (2 * h.subdiv_iterations)) > face_allowance(unit.payload.len());
+        if faces.is_empty() || too_big {
+            let reason = format!("base mesh of {} faces cannot be subdivided {} times", faces.len(), h.subdiv_iterations);
+            return Err(error(p.base_offset, &reason));
+        }
+        let sub = subdivided_base(h, &positions, &faces);
+        let mut dec = ec::Decoder::new(p.coefficients);
+        let mut coefficients = coefcoder::decode(&mut dec, h.components as usize, &sub)
+            .ok_or_else(|| error(p.coefficients_offset, "displacement data is truncated or corrupt"))?;
+        if p.coefficients_predicted {
+            let r = reference.expect("predicted frames have a reference here");
+            coefficients = add_coefficients(&coefficients, &r.coefficients)
+                .ok_or_else(|| error(p.coefficients_offset, "predicted displacements do not match their reference"))?;
+        }
+        Ok((State { positions, faces, coefficients }, sub, p.qp))
     }
 }
 
-/// Splits an intra payload into its fields.
-pub fn read_intra_payload<'a>(unit: &Unit<'a>, frame: u32) -> Result<IntraPayload<'a>, DecodeError> {
+/// `residual + reference`, element by element; `None` on a length mismatch or overflow.
+fn add_coefficients(residual: &[i32], reference: &[i32]) -> Option<Vec<i32>> {
+    if residual.len() != reference.len() {
+        return None;
+    }
+    residual.iter().zip(reference).map(|(a, b)| a.checked_add(*b)).collect()
+}
+
+/// Splits a frame payload into its fields, checking the reference distance and the QP.
+pub fn read_payload<'a>(unit: &Unit<'a>, frame: u32) -> Result<Payload<'a>, DecodeError> {
     let mut r = Reader::new(unit.payload, unit.offset, Some(frame));
+    let reference_distance = match unit.frame_type {
+        FrameType::Intra => 0,
+        FrameType::Predicted => {
+            let d = r.u32("reference distance")?;
+            if d == 0 || d > frame {
+                return Err(r.error(format!("reference distance {d} does not name an earlier frame")));
+            }
+            d
+        }
+    };
     let qp = r.i32("QP")?;
     if !quantize::QP_RANGE.contains(&qp) {
         return Err(r.error(format!("QP {qp} out of range")));
     }
     let (base, base_offset) = r.block("base mesh")?;
+    let coefficients_predicted = match unit.frame_type {
+        FrameType::Intra => false,
+        FrameType::Predicted => match r.u8("coefficient mode")? {
+            0 => false,
+            1 => true,
+            m => return Err(r.error(format!("unknown coefficient mode {m}"))),
+        },
+    };
     let (coefficients, coefficients_offset) = r.block("displacements")?;
     if r.remaining() != 0 {
         return Err(r.error("unexpected bytes at the end of the frame"));
     }
-    Ok(IntraPayload { qp, base, base_offset, coefficients, coefficients_offset })
-}
-
-fn decode_intra(h: &SequenceHeader, unit: &Unit, frame: u32) -> Result<Mesh, DecodeError> {
-    let p = read_intra_payload(unit, frame)?;
-    let (positions, faces) = basecoder::decode_base(p.base, h.base_bits)
-        .map_err(|e| DecodeError::new(Some(frame), p.base_offset, format!("base mesh: {e}")))?;
-    let too_big = faces.len().saturating_mul(1usize << (2 * h.subdiv_iterations)) > face_allowance(unit.payload.len());
-    if faces.is_empty() || too_big {
-        let reason = format!("base mesh of {} faces cannot be subdivided {} times", faces.len(), h.subdiv_iterations);
-        return Err(DecodeError::new(Some(frame), p.base_offset, reason));
-    }
-    let sub = subdivided_base(h, &positions, &faces);
-    let frames = displace::local_frames(&sub.positions, &sub.faces);
-    let mut dec = ec::Decoder::new(p.coefficients);
-    let q = coefcoder::decode(&mut dec, h.components as usize, &sub)
-        .ok_or_else(|| DecodeError::new(Some(frame), p.coefficients_offset, "displacement data is truncated or corrupt"))?;
-    Ok(reconstruct(h, &sub, &frames, &q, p.qp))
+    Ok(Payload { reference_distance, qp, base, base_offset, coefficients_predicted, coefficients, coefficients_offset })
 }
 
 /// Subdivision of the decoded base mesh (integer positions on the base mesh grid).
@@ -107,16 +237,24 @@ pub fn subdivided_base(h: &SequenceHeader, positions: &[[u32; 3]], faces: &[[u32
     subdivide(&p, faces, h.subdiv_iterations, h.scheme)
 }
 
+/// The quantization scale of every vertex of `sub`: its level's scale, times its
+/// adaptive weight when the stream uses adaptive quantization.
+pub fn vertex_scales(h: &SequenceHeader, qp: i32, sub: &Subdivision) -> Vec<f64> {
+    let scales = quantize::lod_scales(qp, h.grid.bits, sub.lod_count());
+    let weights = quantize::vertex_weights(sub.positions.len(), &sub.faces, h.aq.as_ref());
+    weights.iter().enumerate().map(|(v, w)| w * quantize::scale_of(v, &sub.lod_offsets, &scales)).collect()
+}
+
 /// Positions of the decoded frame: dequantize, inverse-transform, apply the displacements
 /// in the local frames, map back to the input's units.
 pub fn reconstruct(h: &SequenceHeader, sub: &Subdivision, frames: &[[[f64; 3]; 3]], q: &[i32], qp: i32) -> Mesh {
     let comps = h.components as usize;
-    let scales = quantize::lod_scales(qp, h.grid.bits, sub.lod_count());
-    let mut local: Vec<[f64; 3]> = (0..sub.positions.len())
-        .map(|v| {
-            let s = quantize::scale_of(v, &sub.lod_offsets, &scales);
-            std::array::from_fn(|k| if k < comps { quantize::dequantize(q[v * comps + k], s) } else { 0.0 })
-        })
+    let offset = h.aq.map_or(0.0, |a| a.delta);
+    let scales = vertex_scales(h, qp, sub);
+    let mut local: Vec<[f64; 3]> = scales
+        .iter()
+        .enumerate()
+        .map(|(v, &s)| std::array::from_fn(|k| if k < comps { quantize::dequantize_shifted(q[v * comps + k], s, offset) } else { 0.0 }))
         .collect();
     transform::inverse(&mut local, sub);
     let world = displace::to_world(&local, frames);

@@ -3,6 +3,9 @@
 
 use std::time::Instant;
 
+use rayon::prelude::*;
+
+use crate::anchor::{self, AnchorParams, AnchorStages};
 use crate::basecoder;
 use crate::bitstream::{self, FrameType, SequenceHeader, Writer};
 use crate::bvh::Bvh;
@@ -14,9 +17,47 @@ use crate::ec;
 use crate::error::InputError;
 use crate::grid::{Grid, BITS_RANGE};
 use crate::mesh::Mesh;
-use crate::quantize;
-use crate::subdivide::Scheme;
+use crate::motion;
+use crate::quantize::{self, AqParams};
+use crate::subdivide::{Scheme, Subdivision};
+use crate::tracking;
 use crate::transform;
+
+/// How predicted frames find their base mesh (the paper's ablation switches).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InterMode {
+    /// Predict only frames whose input has the reference input's connectivity (the MPEG
+    /// test model's behaviour); every topology change forces an intra frame.
+    None,
+    /// Also predict other frames, through an anchor mesh from nearest-neighbour matching.
+    Nns,
+    /// ... with motion estimation before the matching.
+    NnsMe,
+    /// ... and QEM refinement of the matches (the full method).
+    NnsMeQem,
+}
+
+impl InterMode {
+    pub const NAMES: [&'static str; 4] = ["none", "nns", "nns+me", "nns+me+qem"];
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        let modes = [Self::None, Self::Nns, Self::NnsMe, Self::NnsMeQem];
+        Self::NAMES.iter().position(|&n| n == name).map(|i| modes[i])
+    }
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+
+    fn anchor_stages(self) -> Option<AnchorStages> {
+        match self {
+            Self::None => None,
+            Self::Nns => Some(AnchorStages::Nns),
+            Self::NnsMe => Some(AnchorStages::NnsMe),
+            Self::NnsMeQem => Some(AnchorStages::NnsMeQem),
+        }
+    }
+}
 
 /// Encoder options. The defaults are the codec's recommended operating point.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,11 +75,32 @@ pub struct EncoderConfig {
     pub base_bits: u32,
     /// Code only the normal component of each displacement.
     pub normal_only: bool,
+    /// Frames per group: every `intra_period`-th frame is intra; 1 makes every frame intra.
+    pub intra_period: u32,
+    pub inter: InterMode,
+    /// Adaptive displacement quantization, or `None` for one scale per level.
+    pub aq: Option<AqParams>,
+    /// The exchange rate of the intra/inter decision, in dB of PSNR per doubling of the
+    /// rate (the local slope of the codec's RD curve): a frame is predicted when the PSNR it
+    /// loses against intra is at most `rd_slope_db * log2(intra bytes / predicted bytes)`.
+    pub rd_slope_db: f64,
 }
 
 impl Default for EncoderConfig {
     fn default() -> Self {
-        Self { qp: 28, base_ratio: 1.0 / 6.0, subdiv_iterations: 3, scheme: Scheme::Midpoint, bits: 12, base_bits: 9, normal_only: true }
+        Self {
+            qp: 28,
+            base_ratio: 1.0 / 6.0,
+            subdiv_iterations: 3,
+            scheme: Scheme::Midpoint,
+            bits: 12,
+            base_bits: 9,
+            normal_only: true,
+            intra_period: 32,
+            inter: InterMode::NnsMeQem,
+            aq: Some(AqParams::default()),
+            rd_slope_db: 4.0,
+        }
     }
 }
 
@@ -61,6 +123,17 @@ impl EncoderConfig {
         if !BITS_RANGE.contains(&self.base_bits) || self.base_bits > self.bits {
             return err(format!("base mesh position bits {} must be in {}..={}", self.base_bits, BITS_RANGE.start(), self.bits));
         }
+        if self.intra_period == 0 {
+            return err("intra period must be at least 1".into());
+        }
+        if let Some(aq) = &self.aq {
+            if !aq.is_valid() {
+                return err(format!("adaptive quantization needs alpha > 0, h > 0 and |delta| < 1, got {aq:?}"));
+            }
+        }
+        if !(self.rd_slope_db.is_finite() && self.rd_slope_db >= 0.0) {
+            return err(format!("rd slope {} must be finite and non-negative", self.rd_slope_db));
+        }
         Ok(())
     }
 
@@ -73,6 +146,7 @@ impl EncoderConfig {
             subdiv_iterations: self.subdiv_iterations,
             scheme: self.scheme,
             components: if self.normal_only { 1 } else { 3 },
+            aq: self.aq,
         }
     }
 }
@@ -89,57 +163,224 @@ pub struct EncodedFrame {
 
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FrameStats {
+    pub frame_type: Option<FrameType>,
     pub bytes: usize,
+    /// Bytes of the base mesh (intra) or of its motion (predicted).
     pub base_bytes: usize,
     pub displacement_bytes: usize,
     pub base_vertices: usize,
     pub base_faces: usize,
     pub output_vertices: usize,
     pub output_faces: usize,
+    /// Whether the input had the previous input's connectivity.
+    pub same_topology: bool,
+    /// Bytes the other candidate (intra or predicted) would have cost; 0 if there was none.
+    pub rejected_bytes: usize,
+    /// Seconds spent making the predicted frame's base mesh (anchor or tracking).
+    pub anchor_seconds: f64,
     pub seconds: f64,
 }
 
-/// Encodes `mesh` (in the input's units, inside the header's grid box) as an intra frame.
-pub fn encode_intra(h: &SequenceHeader, cfg: &EncoderConfig, mesh: &Mesh) -> Result<EncodedFrame, InputError> {
-    let start = Instant::now();
-    mesh.validate()?;
-    let input: Vec<[f64; 3]> = mesh.positions.iter().map(|&p| h.grid.to_grid(p)).collect();
-    let base_bytes = base_mesh_bytes(h, cfg, &input, &mesh.faces);
-    let (base_pos, base_faces) = basecoder::decode_base(&base_bytes, h.base_bits)
-        .map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
-    let sub = decoder::subdivided_base(h, &base_pos, &base_faces);
-    let frames = displace::local_frames(&sub.positions, &sub.faces);
-    let target = Bvh::new(&input, &mesh.faces);
-    let world = displace::fit_displacements(&sub.positions, &sub.faces, &frames, &target, h.components == 1);
-    let q = quantized_coefficients(h, cfg.qp, &sub, &displace::to_local(&world, &frames));
-    let mut enc = ec::Encoder::new();
-    coefcoder::encode(&mut enc, &q, h.components as usize, &sub);
-    let coef_bytes = enc.finish();
-    let reconstruction = decoder::reconstruct(h, &sub, &frames, &q, cfg.qp);
+/// The state a predicted frame refers to: the previous frame's input and base mesh.
+struct Reference {
+    /// Input in grid units.
+    input: Mesh,
+    /// Base mesh positions on the base grid, and its faces.
+    base: Vec<[u32; 3]>,
+    faces: Vec<[u32; 3]>,
+    /// Quantized displacement coefficients, which a predicted frame may code its own against.
+    coefficients: Vec<i32>,
+}
 
-    let mut w = Writer::default();
-    w.i32(cfg.qp);
-    w.block(&base_bytes);
-    w.block(&coef_bytes);
-    if reconstruction.faces.len() > decoder::face_allowance(w.bytes.len()) {
-        return Err(InputError(format!(
-            "{} output faces from a {}-byte frame exceed what a decoder accepts; use fewer subdivision iterations",
-            reconstruction.faces.len(),
-            w.bytes.len()
-        )));
+/// One way of coding the current frame.
+struct Candidate {
+    frame_type: FrameType,
+    payload: Vec<u8>,
+    base: Vec<[u32; 3]>,
+    faces: Vec<[u32; 3]>,
+    base_bytes: usize,
+    displacement_bytes: usize,
+    coefficients: Vec<i32>,
+    reconstruction: Mesh,
+}
+
+/// Encodes the frames of one sequence in order, predicting from the previous frame.
+pub struct SequenceEncoder {
+    header: SequenceHeader,
+    config: EncoderConfig,
+    frame: u32,
+    reference: Option<Reference>,
+}
+
+impl SequenceEncoder {
+    /// An encoder for `frame_count` frames whose positions lie in the box `[min, max]`.
+    pub fn new(config: EncoderConfig, frame_count: u32, min: [f64; 3], max: [f64; 3]) -> Result<Self, InputError> {
+        config.validate()?;
+        if !min.iter().chain(&max).all(|c| c.is_finite()) {
+            return Err(InputError("bounding box must be finite".into()));
+        }
+        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, reference: None })
     }
-    let unit = bitstream::write_unit(FrameType::Intra, &w.bytes);
-    let stats = FrameStats {
-        bytes: unit.len(),
-        base_bytes: base_bytes.len(),
-        displacement_bytes: coef_bytes.len(),
-        base_vertices: base_pos.len(),
-        base_faces: base_faces.len(),
-        output_vertices: reconstruction.positions.len(),
-        output_faces: reconstruction.faces.len(),
-        seconds: start.elapsed().as_secs_f64(),
-    };
-    Ok(EncodedFrame { unit, reconstruction, stats })
+
+    pub fn header(&self) -> &SequenceHeader {
+        &self.header
+    }
+
+    /// Encodes the next frame (in the input's units, inside the header's box).
+    pub fn encode(&mut self, mesh: &Mesh) -> Result<EncodedFrame, InputError> {
+        let start = Instant::now();
+        mesh.validate()?;
+        let (h, cfg) = (&self.header, &self.config);
+        let input = Mesh::new(mesh.positions.iter().map(|&p| h.grid.to_grid(p)).collect(), mesh.faces.clone());
+        let target = Bvh::new(&input.positions, &input.faces);
+        let same_topology = self.reference.as_ref().is_some_and(|r| tracking::same_connectivity(&r.input, &input));
+        let may_predict = self.frame % cfg.intra_period != 0 && self.reference.is_some();
+        let anchor_start = Instant::now();
+        let anchor = if may_predict { self.anchor_positions(&input, same_topology) } else { None };
+        let anchor_seconds = anchor_start.elapsed().as_secs_f64();
+        let predicted = anchor.map(|a| self.predicted(&a, &input, &target)).transpose()?;
+        let intra = self.intra(&input, &target)?;
+        let (chosen, rejected_bytes) = match predicted {
+            Some(p) => {
+                let (p_bytes, i_bytes) = (p.payload.len(), intra.payload.len());
+                if self.prefer_predicted(&p, &intra, &input, &target) {
+                    (p, i_bytes)
+                } else {
+                    (intra, p_bytes)
+                }
+            }
+            None => (intra, 0),
+        };
+        let unit = bitstream::write_unit(chosen.frame_type, &chosen.payload);
+        let stats = FrameStats {
+            frame_type: Some(chosen.frame_type),
+            bytes: unit.len(),
+            base_bytes: chosen.base_bytes,
+            displacement_bytes: chosen.displacement_bytes,
+            base_vertices: chosen.base.len(),
+            base_faces: chosen.faces.len(),
+            output_vertices: chosen.reconstruction.positions.len(),
+            output_faces: chosen.reconstruction.faces.len(),
+            same_topology,
+            rejected_bytes,
+            anchor_seconds: if may_predict { anchor_seconds } else { 0.0 },
+            seconds: start.elapsed().as_secs_f64(),
+        };
+        self.reference = Some(Reference { input, base: chosen.base, faces: chosen.faces, coefficients: chosen.coefficients });
+        self.frame += 1;
+        Ok(EncodedFrame { unit, reconstruction: chosen.reconstruction, stats })
+    }
+
+    /// The current frame's base mesh positions (base grid units) with the reference base
+    /// mesh's connectivity, if this frame may be predicted.
+    fn anchor_positions(&self, input: &Mesh, same_topology: bool) -> Option<Vec<[u32; 3]>> {
+        let r = self.reference.as_ref()?;
+        let base_grid = self.header.grid.coarser(self.header.base_bits);
+        let reference = Mesh::new(r.base.iter().map(|q| base_grid.to_world(q.map(|c| c as f64))).collect(), r.faces.clone());
+        let moved = if same_topology {
+            tracking::tracked_positions(&reference.positions, &r.input, input)
+        } else {
+            let stages = self.config.inter.anchor_stages()?;
+            anchor::anchor_mesh(&reference, input, &AnchorParams { stages, ..AnchorParams::default() }).positions
+        };
+        Some(moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect())
+    }
+
+    fn intra(&self, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
+        let h = &self.header;
+        let base_bytes = base_mesh_bytes(h, &self.config, &input.positions, &input.faces);
+        let (base, faces) = basecoder::decode_base(&base_bytes, h.base_bits)
+            .map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
+        let mut w = Writer::default();
+        w.i32(self.config.qp);
+        w.block(&base_bytes);
+        self.finish_candidate(FrameType::Intra, w, base_bytes.len(), base, faces, target, None)
+    }
+
+    fn predicted(&self, anchor: &[[u32; 3]], _input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
+        let r = self.reference.as_ref().expect("predicted frames have a reference");
+        let mut enc = ec::Encoder::new();
+        motion::encode_motion(&mut enc, &r.base, anchor, &r.faces);
+        let motion_bytes = enc.finish();
+        let mut w = Writer::default();
+        w.u32(1);
+        w.i32(self.config.qp);
+        w.block(&motion_bytes);
+        self.finish_candidate(FrameType::Predicted, w, motion_bytes.len(), anchor.to_vec(), r.faces.clone(), target, Some(&r.coefficients))
+    }
+
+    /// Fits, transforms, quantizes and codes the displacements of the base mesh
+    /// `(base, faces)` towards `target`, and appends them to the payload `w`. A predicted
+    /// frame passes its reference's coefficients: they correspond vertex for vertex, and the
+    /// coefficients are coded as differences from them when that is smaller (mode byte 1).
+    #[allow(clippy::too_many_arguments)]
+    fn finish_candidate(
+        &self,
+        frame_type: FrameType,
+        mut w: Writer,
+        base_bytes: usize,
+        base: Vec<[u32; 3]>,
+        faces: Vec<[u32; 3]>,
+        target: &Bvh,
+        reference_coefficients: Option<&[i32]>,
+    ) -> Result<Candidate, InputError> {
+        let (h, qp) = (&self.header, self.config.qp);
+        let sub = decoder::subdivided_base(h, &base, &faces);
+        let frames = displace::local_frames(&sub.positions, &sub.faces);
+        let world = displace::fit_displacements(&sub.positions, &sub.faces, &frames, target, h.components == 1);
+        let q = quantized_coefficients(h, qp, &sub, &displace::to_local(&world, &frames));
+        let coded = |values: &[i32]| {
+            let mut enc = ec::Encoder::new();
+            coefcoder::encode(&mut enc, values, h.components as usize, &sub);
+            enc.finish()
+        };
+        let mut coef_bytes = coded(&q);
+        if let Some(r) = reference_coefficients {
+            let residual: Vec<i32> = q.iter().zip(r).map(|(a, b)| a.saturating_sub(*b)).collect();
+            let predicted = coded(&residual);
+            let use_prediction = predicted.len() < coef_bytes.len();
+            w.u8(use_prediction as u8);
+            if use_prediction {
+                coef_bytes = predicted;
+            }
+        }
+        let reconstruction = decoder::reconstruct(h, &sub, &frames, &q, qp);
+        w.block(&coef_bytes);
+        if reconstruction.faces.len() > decoder::face_allowance(w.bytes.len()) {
+            return Err(InputError(format!(
+                "{} output faces from a {}-byte frame exceed what a decoder accepts; use fewer subdivision iterations",
+                reconstruction.faces.len(),
+                w.bytes.len()
+            )));
+        }
+        let displacement_bytes = coef_bytes.len();
+        Ok(Candidate { frame_type, payload: w.bytes, base, faces, base_bytes, displacement_bytes, coefficients: q, reconstruction })
+    }
+
+    /// A rate-distortion decision: the test model keeps inter unless intra wins by a fixed
+    /// PSNR margin whatever the rates; here the PSNR the predicted frame loses is weighed
+    /// against the rate it saves, at the exchange rate `rd_slope_db`.
+    fn prefer_predicted(&self, p: &Candidate, i: &Candidate, input: &Mesh, target: &Bvh) -> bool {
+        let (dp, di) = (self.distortion(&p.reconstruction, input, target), self.distortion(&i.reconstruction, input, target));
+        let loss_db = 10.0 * (dp.max(f64::MIN_POSITIVE) / di.max(f64::MIN_POSITIVE)).log10();
+        let rate_saving = (i.payload.len() as f64 / p.payload.len() as f64).log2();
+        loss_db <= self.config.rd_slope_db * rate_saving
+    }
+
+    /// Symmetric mean squared vertex-to-surface distance (grid units) between a
+    /// reconstruction (input units) and the input (grid units): an estimate of D1 that
+    /// needs no sampling.
+    fn distortion(&self, reconstruction: &Mesh, input: &Mesh, target: &Bvh) -> f64 {
+        let rec: Vec<[f64; 3]> = reconstruction.positions.iter().map(|&p| self.header.grid.to_grid(p)).collect();
+        let forward = mean_squared_distance(&rec, target);
+        let backward = mean_squared_distance(&input.positions, &Bvh::new(&rec, &reconstruction.faces));
+        forward.max(backward)
+    }
+}
+
+fn mean_squared_distance(points: &[[f64; 3]], surface: &Bvh) -> f64 {
+    let sum: f64 = points.par_iter().map(|&p| surface.closest_point(p).map_or(0.0, |c| c.dist2)).sum();
+    sum / points.len().max(1) as f64
 }
 
 /// Decimates the input (grid units) and codes the quantized base mesh.
@@ -151,16 +392,17 @@ fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], 
     basecoder::encode_base(&positions, &base.faces, h.base_bits)
 }
 
-/// Forward lifting and per-level quantization of the local displacement components.
-fn quantized_coefficients(h: &SequenceHeader, qp: i32, sub: &crate::subdivide::Subdivision, local: &[[f64; 3]]) -> Vec<i32> {
+/// Forward lifting and per-level (and, with AQ, per-vertex) quantization of the local
+/// displacement components.
+fn quantized_coefficients(h: &SequenceHeader, qp: i32, sub: &Subdivision, local: &[[f64; 3]]) -> Vec<i32> {
     let comps = h.components as usize;
     let mut signal = local.to_vec();
     transform::forward(&mut signal, sub);
-    let scales = quantize::lod_scales(qp, h.grid.bits, sub.lod_count());
+    let scales = decoder::vertex_scales(h, qp, sub);
+    let offset = h.aq.map_or(0.0, |a| a.delta);
     let mut q = Vec::with_capacity(signal.len() * comps);
-    for (v, c) in signal.iter().enumerate() {
-        let s = quantize::scale_of(v, &sub.lod_offsets, &scales);
-        q.extend((0..comps).map(|k| quantize::quantize(c[k], s)));
+    for (c, &s) in signal.iter().zip(&scales) {
+        q.extend((0..comps).map(|k| quantize::quantize_shifted(c[k], s, offset)));
     }
     q
 }

@@ -32,6 +32,63 @@ pub fn dequantize(q: i32, scale: f64) -> f64 {
     q as f64 / scale
 }
 
+/// Adaptive displacement quantization (the paper's section II-C): vertex `v`'s scale is
+/// multiplied by `alpha * valence(v) / h`, so vertices with more neighbours (more local
+/// detail) are quantized more finely, and the quantizer's lattice is shifted by `delta`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AqParams {
+    pub alpha: f64,
+    pub delta: f64,
+    pub h: f64,
+}
+
+impl Default for AqParams {
+    fn default() -> Self {
+        Self { alpha: 1.0, delta: 0.0, h: 6.0 }
+    }
+}
+
+impl AqParams {
+    /// Parameters a stream may carry: finite, positive `alpha` and `h`, `|delta| < 1`.
+    pub fn is_valid(&self) -> bool {
+        self.alpha.is_finite() && self.alpha > 0.0 && self.h.is_finite() && self.h > 0.0 && self.delta.abs() < 1.0
+    }
+}
+
+/// The scale multiplier of each of `n` vertices of `faces`: `alpha * valence / h` with AQ
+/// (an isolated vertex counts as valence 1), 1 without.
+pub fn vertex_weights(n: usize, faces: &[[u32; 3]], aq: Option<&AqParams>) -> Vec<f64> {
+    let Some(aq) = aq else { return vec![1.0; n] };
+    let mut neighbours = vec![Vec::new(); n];
+    for f in faces {
+        for k in 0..3 {
+            let (a, b) = (f[k] as usize, f[(k + 1) % 3]);
+            neighbours[a].push(b);
+            neighbours[b as usize].push(f[k]);
+        }
+    }
+    neighbours
+        .into_iter()
+        .map(|mut l| {
+            l.sort_unstable();
+            l.dedup();
+            aq.alpha * l.len().max(1) as f64 / aq.h
+        })
+        .collect()
+}
+
+/// Quantizes with the lattice shifted by `offset` (in quantization steps).
+#[inline]
+pub fn quantize_shifted(c: f64, scale: f64, offset: f64) -> i32 {
+    quantize(c + offset / scale, scale)
+}
+
+/// Inverse of [`quantize_shifted`].
+#[inline]
+pub fn dequantize_shifted(q: i32, scale: f64, offset: f64) -> f64 {
+    (q as f64 - offset) / scale
+}
+
 /// Scale of vertex `v` given the level offsets `[0, base, ..., total]`.
 pub fn scale_of(v: usize, lod_offsets: &[usize], scales: &[f64]) -> f64 {
     let level = lod_offsets[1..].partition_point(|&end| end <= v);
@@ -57,6 +114,25 @@ mod tests {
         assert_eq!(quantize(-0.7, 1.0), -1);
         assert_eq!(quantize(2.5, 2.0), 5);
         assert_eq!(dequantize(5, 2.0), 2.5);
+    }
+
+    #[test]
+    fn weights_follow_the_valence_and_are_one_without_aq() {
+        // A fan of four triangles around vertex 0: valence 4 at the centre, 3 or 2 outside.
+        let faces = [[0, 1, 2], [0, 2, 3], [0, 3, 4], [0, 4, 1]];
+        assert_eq!(vertex_weights(6, &faces, None), vec![1.0; 6]);
+        let aq = AqParams { alpha: 1.5, delta: 0.0, h: 6.0 };
+        let w = vertex_weights(6, &faces, Some(&aq));
+        assert_eq!(w, vec![1.0, 0.75, 0.75, 0.75, 0.75, 0.25]);
+    }
+
+    #[test]
+    fn a_shifted_lattice_round_trips_its_own_points() {
+        for q in -5..=5 {
+            let c = dequantize_shifted(q, 4.0, 0.25);
+            assert_eq!(quantize_shifted(c + 1e-9, 4.0, 0.25), q);
+        }
+        assert!(!AqParams { alpha: 1.0, delta: 1.5, h: 6.0 }.is_valid());
     }
 
     #[test]

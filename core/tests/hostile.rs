@@ -2,8 +2,8 @@
 //! never produce more than the bounded output.
 
 use dynmesh::bitstream::{self, FrameType};
-use dynmesh::decoder;
-use dynmesh::encoder::{encode_intra, EncoderConfig};
+use dynmesh::decoder::{self, Decoder};
+use dynmesh::encoder::{EncoderConfig, SequenceEncoder};
 use dynmesh::mesh::Mesh;
 
 fn ball() -> Mesh {
@@ -19,15 +19,18 @@ fn ball_of(levels: u32) -> Mesh {
     Mesh::new(pos, s.faces)
 }
 
+/// The ball, then the ball moved twice: one intra frame and two predicted ones.
 fn stream(cfg: &EncoderConfig) -> Vec<u8> {
-    stream_of(cfg, &ball())
+    let b = ball();
+    let moved = |d: f64| Mesh::new(b.positions.iter().map(|p| [p[0] * 0.9 + d, p[1], p[2]]).collect(), b.faces.clone());
+    stream_of(cfg, &[b.clone(), moved(0.05), moved(0.08)])
 }
 
-fn stream_of(cfg: &EncoderConfig, m: &Mesh) -> Vec<u8> {
-    let h = cfg.header(2, [-1.0; 3], [1.0; 3]);
-    let mut out = bitstream::write_header(&h);
-    for _ in 0..2 {
-        out.extend(encode_intra(&h, cfg, m).unwrap().unit);
+fn stream_of(cfg: &EncoderConfig, meshes: &[Mesh]) -> Vec<u8> {
+    let mut enc = SequenceEncoder::new(cfg.clone(), meshes.len() as u32, [-1.0; 3], [1.0; 3]).unwrap();
+    let mut out = bitstream::write_header(enc.header());
+    for m in meshes {
+        out.extend(enc.encode(m).unwrap().unit);
     }
     out
 }
@@ -50,10 +53,10 @@ fn fix_crcs(data: &mut [u8]) -> bool {
 }
 
 fn decode_all(data: &[u8]) -> Result<usize, dynmesh::error::DecodeError> {
-    let s = decoder::open(data)?;
+    let mut d = Decoder::new(data.to_vec())?;
     let mut vertices = 0;
-    for i in 0..s.units.len() {
-        vertices += decoder::decode_frame(&s, i as u32)?.positions.len();
+    for i in 0..d.frame_count() {
+        vertices += d.decode_frame(i)?.positions.len();
     }
     Ok(vertices)
 }
@@ -64,9 +67,12 @@ fn lcg(seed: &mut u64) -> usize {
 }
 
 #[test]
-fn clean_stream_decodes() {
+fn clean_stream_decodes_and_has_predicted_frames() {
     let s = stream(&EncoderConfig { subdiv_iterations: 1, ..Default::default() });
     assert!(decode_all(&s).unwrap() > 0);
+    let d = Decoder::new(s).unwrap();
+    let types: Vec<FrameType> = (0..3).map(|i| d.frame_info(i).unwrap().frame_type).collect();
+    assert_eq!(types, [FrameType::Intra, FrameType::Predicted, FrameType::Predicted]);
 }
 
 #[test]
@@ -97,7 +103,7 @@ fn payload_flips_behind_a_valid_crc_never_panic() {
 }
 
 #[test]
-fn frame_types_other_than_intra_are_rejected() {
+fn unknown_frame_types_are_rejected() {
     let mut d = stream(&EncoderConfig { subdiv_iterations: 1, ..Default::default() });
     let (_, start) = bitstream::read_header(&d).unwrap();
     d[start] = 7;
@@ -105,14 +111,14 @@ fn frame_types_other_than_intra_are_rejected() {
     let e = decode_all(&d).unwrap_err();
     assert_eq!(e.frame, Some(0));
     assert!(e.reason.contains("frame type"));
-    assert_eq!(FrameType::Intra as u8, 0);
+    assert_eq!((FrameType::Intra as u8, FrameType::Predicted as u8), (0, 1));
 }
 
 #[test]
 fn a_header_asking_for_more_subdivision_than_the_frame_justifies_is_refused() {
     // 2048 base faces subdivided 6 times would be 8M faces from a frame of a few KB.
     let cfg = EncoderConfig { subdiv_iterations: 0, base_ratio: 1.0, ..EncoderConfig::default() };
-    let mut s = stream_of(&cfg, &ball_of(4));
+    let mut s = stream_of(&cfg, &[ball_of(4)]);
     let (h, start) = bitstream::read_header(&s).unwrap();
     let bigger = bitstream::SequenceHeader { subdiv_iterations: bitstream::MAX_SUBDIV, ..h };
     let header = bitstream::write_header(&bigger);
@@ -121,4 +127,32 @@ fn a_header_asking_for_more_subdivision_than_the_frame_justifies_is_refused() {
     let e = decode_all(&s).unwrap_err();
     assert_eq!(e.frame, Some(0));
     assert!(e.to_string().contains("cannot be subdivided"), "{e}");
+}
+
+#[test]
+fn decoder_output_equals_the_encoder_reconstruction_for_intra_and_predicted_frames() {
+    let cfg = EncoderConfig { subdiv_iterations: 2, ..Default::default() };
+    let b = ball();
+    let frames: Vec<Mesh> = (0..4)
+        .map(|t| Mesh::new(b.positions.iter().map(|p| [p[0] * 0.8 + 0.03 * t as f64, p[1] * 0.9, p[2]]).collect(), b.faces.clone()))
+        .collect();
+    let mut enc = SequenceEncoder::new(EncoderConfig { intra_period: 3, ..cfg }, 4, [-1.0; 3], [1.0; 3]).unwrap();
+    let mut data = bitstream::write_header(enc.header());
+    let mut recon = Vec::new();
+    for f in &frames {
+        let e = enc.encode(f).unwrap();
+        data.extend(e.unit);
+        recon.push(e.reconstruction);
+    }
+    let mut d = Decoder::new(data.clone()).unwrap();
+    let types: Vec<FrameType> = (0..4).map(|i| d.frame_info(i).unwrap().frame_type).collect();
+    assert_eq!(types, [FrameType::Intra, FrameType::Predicted, FrameType::Predicted, FrameType::Intra]);
+    for i in 0..4 {
+        assert_eq!(d.decode_frame(i).unwrap(), recon[i as usize], "frame {i}");
+    }
+    // Seeking: out of order, from a fresh decoder, gives the same frames.
+    let mut d = Decoder::new(data).unwrap();
+    for i in [2, 0, 3, 1, 2] {
+        assert_eq!(d.decode_frame(i).unwrap(), recon[i as usize], "frame {i} out of order");
+    }
 }

@@ -68,18 +68,22 @@ def encode_frames(
     """Encodes a sequence (Mesh objects or (positions, faces) pairs) into one stream.
 
     Options (see ``DEFAULTS``): qp, base_ratio, subdiv, scheme ("midpoint" or "loop"),
-    bits (position grid), base_bits (base mesh positions, at most bits), normal_only. ``on_frame(index, stats)`` is called after each frame. Raises
-    ValueError for an invalid mesh or option, naming the frame.
+    bits (position grid), base_bits (base mesh positions, at most bits), normal_only,
+    intra_period (1 = every frame intra), inter ("none", "nns", "nns+me", "nns+me+qem"),
+    rd_slope (dB per rate doubling, for the intra/inter decision), aq (adaptive quantization) with aq_alpha, aq_delta, aq_h.
+    ``on_frame(index, stats)`` is called after each frame; ``stats["type"]`` is "I" or "P".
+    Raises ValueError for an invalid mesh or option, naming the frame.
     """
     unknown = set(options) - set(DEFAULTS)
     if unknown:
-        raise TypeError(f"unknown encoder option(s): {', '.join(sorted(unknown))}")
+        raise ValueError(f"unknown encoder option(s): {', '.join(sorted(unknown))}")
     opts = {**DEFAULTS, **options}
     meshes = [_as_mesh(f) for f in frames]
     lo, hi = sequence_bounds(meshes)
-    enc = _core.Encoder(len(meshes), lo.tolist(), hi.tolist(), qp=int(opts["qp"]), base_ratio=float(opts["base_ratio"]),
-                        subdiv=int(opts["subdiv"]), scheme=str(opts["scheme"]), bits=int(opts["bits"]),
-                        base_bits=int(opts["base_bits"]), normal_only=bool(opts["normal_only"]))
+    try:
+        enc = _core.Encoder(len(meshes), lo.tolist(), hi.tolist(), opts)
+    except TypeError as e:
+        raise ValueError(f"invalid encoder option: {e}") from None
     parts = [enc.header_bytes()]
     result = EncodeResult(b"")
     for i, m in enumerate(meshes):
@@ -154,6 +158,12 @@ def metrics(reference, decoded, *, peak: float | None = None, grid_size: int = 1
     return {"peak": peak, "frames": frames, **mean}
 
 
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
     """Writes ``data`` to a temporary file beside ``path`` and renames it into place."""
     path = Path(path)
@@ -161,6 +171,7 @@ def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
+        os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)

@@ -44,7 +44,9 @@ def _table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
 
 def _encoder_options(a) -> dict:
     return dict(qp=a.qp, base_ratio=a.base_ratio, subdiv=a.subdiv, scheme=a.scheme, bits=a.bits,
-                normal_only=not a.all_components)
+                base_bits=a.base_bits, normal_only=not a.all_components, intra_period=a.intra_period,
+                inter=a.inter, rd_slope=a.rd_slope, aq=a.aq, aq_alpha=a.aq_alpha,
+                aq_delta=a.aq_delta, aq_h=a.aq_h)
 
 
 def cmd_encode(a) -> dict:
@@ -56,7 +58,7 @@ def cmd_encode(a) -> dict:
     summary = {"output": str(a.output), "bytes": len(result.data), "frames": frames,
                "options": _encoder_options(a)}
     if not a.json:
-        print(_table(frames, [("frame", "frame", "d"), ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
+        print(_table(frames, [("frame", "frame", "d"), ("type", "type", "s"), ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
                               ("displacement_bytes", "disp B", "d"), ("base_faces", "base faces", "d"),
                               ("output_faces", "out faces", "d"), ("seconds", "seconds", ".3f")]))
         print(f"wrote {a.output}: {len(result.data)} bytes, {len(frames)} frames, "
@@ -87,7 +89,8 @@ def cmd_info(a) -> dict:
     result = api.info(_read_bytes(a.input))
     if not a.json:
         h = result["header"]
-        print(f"{a.input}: {result['bytes']} bytes, {h['frame_count']} frames, {h['bits']}-bit positions, "
+        print(f"{a.input}: {result['bytes']} bytes, {h['frame_count']} frames, {h['bits']}-bit positions "
+              f"({h['base_bits']}-bit base mesh), "
               f"{h['subdiv_iterations']} {h['scheme']} subdivision(s), {h['components']} displacement component(s)")
         rows = [{"frame": i, **f} for i, f in enumerate(result["frames"])]
         print(_table(rows, [("frame", "frame", "d"), ("type", "type", "s"), ("qp", "qp", "d"),
@@ -97,7 +100,7 @@ def cmd_info(a) -> dict:
 
 
 def cmd_metrics(a) -> dict:
-    _, refs = _read_sequence(a.reference, None, None, a.quiet)
+    _, refs = _read_sequence(a.reference, a.start, a.count, a.quiet)
     _, decs = _read_sequence(a.decoded, None, None, a.quiet)
     result = api.metrics(refs, decs, peak=a.peak, grid_size=a.grid_size)
     if not a.json:
@@ -148,6 +151,59 @@ def cmd_demo(a) -> dict:
     return {"workdir": str(work), "raw_bytes": raw, "rates": rows}
 
 
+def cmd_eval(a) -> dict:
+    from . import evaluate, report
+
+    exp = evaluate.load_experiment(a.config)
+    out = Path(a.out) if a.out else Path("results") / exp.name
+    if a.jobs < 1:
+        raise CliError(f"--jobs must be at least 1, got {a.jobs}")
+    counts = {"reused": 0, "measured": 0}
+    start = time.perf_counter()
+    if a.report_only:
+        results = evaluate.load_results(out)
+    else:
+        running: list[str] = []
+        with _progress(len(evaluate.plan_runs(exp)), "eval", a.quiet) as bar:
+            bar.unit = "run"
+
+            def started(run):
+                running.append(run.id)
+                bar.set_postfix_str("running " + ", ".join(running))
+
+            def done(run, record, reused):
+                counts["reused" if reused else "measured"] += 1
+                if run.id in running:
+                    running.remove(run.id)
+                bar.update()
+                bar.set_postfix_str("running " + ", ".join(running) if running else "")
+
+            records = evaluate.run_experiment(exp, out, jobs=a.jobs, force=a.force, on_start=started, on_done=done)
+        results = evaluate.results_document(exp, records)
+    seconds = time.perf_counter() - start
+    rows = report.bd_rows(results)
+    page = None
+    if a.report:
+        command = " ".join(["dynmesh eval", str(a.config)] + (["--out", str(a.out)] if a.out else [])
+                           + (["--jobs", str(a.jobs)] if a.jobs != 1 else [])
+                           + ["--report", str(a.report)] + (["--report-file", a.report_file]
+                                                            if a.report_file != "results.md" else []))
+        page = report.write_report(results, a.report, a.report_file, command=command)
+    if not a.json:
+        fmt = lambda v, f: "n/a" if v is None else format(v, f)  # noqa: E731
+        table = [{"sequence": r["sequence"], "variant": r["variant"], "d1": fmt(r["d1_bd"], "+.2f"),
+                  "d2": fmt(r["d2_bd"], "+.2f"), "enc": fmt(r["enc_ratio"] and 100 * r["enc_ratio"], ".1f"),
+                  "dec": fmt(r["dec_ratio"] and 100 * r["dec_ratio"], ".1f")} for r in rows]
+        print(f"BD-rate against {results['anchor']} (PCHIP; time = test/anchor, geometric mean over rates)")
+        print(_table(table, [("sequence", "sequence", "s"), ("variant", "variant", "s"), ("d1", "D1 BD-rate %", "s"),
+                             ("d2", "D2 BD-rate %", "s"), ("enc", "enc time %", "s"), ("dec", "dec time %", "s")]))
+        what = ("report rebuilt from saved results" if a.report_only else
+                f"{len(results['runs'])} runs ({counts['measured']} measured, {counts['reused']} reused)")
+        print(f"{what} in {seconds:.1f} s; results in {out}" + (f"; report {page}" if page else ""))
+    return {"out": str(out), "report": str(page) if page else None, "seconds": seconds, **counts,
+            "bd_rate": rows, "runs": results["runs"]}
+
+
 def _read_bytes(path: str) -> bytes:
     try:
         return Path(path).read_bytes()
@@ -178,8 +234,24 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--base-ratio", type=float, default=d["base_ratio"], help=f"base mesh faces / input faces (default {d['base_ratio']:g})")
     p.add_argument("--subdiv", type=int, default=d["subdiv"], help=f"subdivision iterations (default {d['subdiv']})")
     p.add_argument("--scheme", choices=["midpoint", "loop"], default=d["scheme"], help="subdivision scheme (default midpoint)")
-    p.add_argument("--bits", type=int, default=d["bits"], help=f"base mesh position bits (default {d['bits']})")
+    p.add_argument("--bits", type=int, default=d["bits"], help=f"position bits over the sequence box (default {d['bits']})")
+    p.add_argument("--base-bits", type=int, default=d["base_bits"],
+                   help=f"base mesh position bits, at most --bits (default {d['base_bits']})")
     p.add_argument("--all-components", action="store_true", help="code all three displacement components, not only the normal one")
+    p.add_argument("--intra-period", type=int, default=d["intra_period"],
+                   help=f"frames per group; each group starts with an intra frame, 1 = all intra (default {d['intra_period']})")
+    p.add_argument("--inter", choices=["none", "nns", "nns+me", "nns+me+qem"], default=d["inter"],
+                   help="how predicted frames get their base mesh when the topology changes: none = never (intra), "
+                        "nns = nearest-neighbour anchor, +me = with motion estimation, +qem = with QEM refinement "
+                        f"(default {d['inter']})")
+    p.add_argument("--rd-slope", type=float, default=d["rd_slope"],
+                   help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
+                        f"intra (default {d['rd_slope']:g})")
+    p.add_argument("--aq", action=argparse.BooleanOptionalAction, default=d["aq"],
+                   help="adaptive displacement quantization by vertex valence (default: %(default)s)")
+    p.add_argument("--aq-alpha", type=float, default=d["aq_alpha"], help=f"AQ step factor alpha (default {d['aq_alpha']:g})")
+    p.add_argument("--aq-delta", type=float, default=d["aq_delta"], help=f"AQ lattice offset delta, |delta| < 1 (default {d['aq_delta']:g})")
+    p.add_argument("--aq-h", type=float, default=d["aq_h"], help=f"AQ valence normalisation h (default {d['aq_h']:g})")
     _common(p)
     p.set_defaults(run=cmd_encode)
 
@@ -199,6 +271,8 @@ def parser() -> argparse.ArgumentParser:
                        description="D1/D2 PSNR (MPEG grid sampling) of DEC against REF, per frame and mean.")
     p.add_argument("reference", help="reference mesh or sequence")
     p.add_argument("decoded", help="decoded mesh or sequence")
+    p.add_argument("--start", type=int, help="first reference frame (to match a stream encoded with --start)")
+    p.add_argument("--count", type=int, help="number of reference frames")
     p.add_argument("--peak", type=float, help="PSNR peak (default: largest side of the reference sequence's bounding box)")
     p.add_argument("--grid-size", type=int, default=1024, help="sampling grid size (default 1024)")
     _common(p)
@@ -218,6 +292,22 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--workdir", help="where to keep the files (default: a new temporary directory)")
     _common(p)
     p.set_defaults(run=cmd_demo)
+
+    p = sub.add_parser("eval", help="run a rate-distortion experiment (BD-rate, plots, report)",
+                       description="Encode, decode and measure every sequence x variant x rate point of an "
+                                   "experiment file (TOML), save the results, compute BD-rates against the anchor "
+                                   "and optionally write a Markdown report with RD plots. Finished runs are reused.")
+    p.add_argument("config", help="experiment file (.toml); paths in it are relative to its directory")
+    p.add_argument("--out", help="results directory (default results/<config stem>)")
+    p.add_argument("--jobs", type=int, default=1, help="runs measured in parallel, in separate processes (default 1)")
+    p.add_argument("--force", action="store_true", help="measure every run again, even if saved results match")
+    p.add_argument("--report", metavar="DIR", help="write a Markdown report with RD plots into DIR")
+    p.add_argument("--report-file", default="results.md",
+                   help="report file name in DIR; plots go to DIR/<its stem>/ (default results.md)")
+    p.add_argument("--report-only", action="store_true",
+                   help="measure nothing: rebuild tables and report from OUT/results.json")
+    _common(p)
+    p.set_defaults(run=cmd_eval)
     return top
 
 
