@@ -159,8 +159,8 @@ def test_end_to_end_resume_change_and_force(experiment, tmp_path, count_encodes)
     page = (docs / "results.md").read_text()
     assert "## BD-rate against dm" in page and "| wobbly |" in page and "**Average**" in page
     for name in ("rd_wobbly_d1.png", "rd_wobbly_d2.png"):
-        assert f"(results/{name})" in page
-        assert (docs / "results" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+        assert f"(results/exp/{name})" in page
+        assert (docs / "results" / "exp" / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
     # Resume: everything is reused, nothing is rewritten.
     stamps = {p.name: p.stat().st_mtime_ns for p in (out / "runs").iterdir()}
@@ -186,7 +186,7 @@ def test_end_to_end_resume_change_and_force(experiment, tmp_path, count_encodes)
     (docs / "results.md").unlink()
     assert eval_cli(experiment, "--out", out, "--report", docs, "--report-only", "--report-file", "rd.md") == 0
     assert count_encodes == {"dynmesh": 8, "draco": 4}
-    assert "## BD-rate against dm" in (docs / "rd.md").read_text() and (docs / "rd" / "rd_wobbly_d1.png").exists()
+    assert "## BD-rate against dm" in (docs / "rd.md").read_text() and (docs / "rd" / "exp" / "rd_wobbly_d1.png").exists()
 
 
 def test_parallel_runs_match_serial_runs(experiment, tmp_path, capsys):
@@ -325,3 +325,14 @@ def test_bd_rows_average_and_time_ratios():
     assert avg["sequence"] == "Average" and avg["d1_bd"] == pytest.approx(0.0, abs=1e-9)
     assert a["enc_ratio"] == pytest.approx(4.0) and avg["enc_ratio"] == pytest.approx(2.0)  # geometric mean
     assert math.isclose(avg["dec_ratio"], 2.0)
+
+
+def test_two_experiments_share_a_page_and_each_rewrites_only_its_section(tmp_path):
+    from dynmesh.report import _with_section
+
+    page = _with_section("", "a", "## A\nfirst")
+    page = _with_section(page, "b", "## B\nsecond")
+    page = _with_section(page, "a", "## A\nrewritten")
+    assert page.startswith("# Results")
+    assert "rewritten" in page and "first" not in page and "second" in page
+    assert page.index("rewritten") < page.index("second")

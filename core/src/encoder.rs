@@ -174,7 +174,7 @@ pub struct FrameStats {
     pub output_faces: usize,
     /// Whether the input had the previous input's connectivity.
     pub same_topology: bool,
-    /// Bytes the other candidate (intra or predicted) would have cost; 0 if there was none.
+    /// Bytes the other candidate (intra or predicted) would have cost; 0 if it was not coded.
     pub rejected_bytes: usize,
     /// Seconds spent making the predicted frame's base mesh (anchor or tracking).
     pub anchor_seconds: f64,
@@ -210,6 +210,8 @@ pub struct SequenceEncoder {
     config: EncoderConfig,
     frame: u32,
     reference: Option<Reference>,
+    /// Payload bytes and estimated distortion of the last frame coded intra.
+    last_intra: Option<(usize, f64)>,
 }
 
 impl SequenceEncoder {
@@ -219,7 +221,7 @@ impl SequenceEncoder {
         if !min.iter().chain(&max).all(|c| c.is_finite()) {
             return Err(InputError("bounding box must be finite".into()));
         }
-        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, reference: None })
+        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, reference: None, last_intra: None })
     }
 
     pub fn header(&self) -> &SequenceHeader {
@@ -239,18 +241,7 @@ impl SequenceEncoder {
         let anchor = if may_predict { self.anchor_positions(&input, same_topology) } else { None };
         let anchor_seconds = anchor_start.elapsed().as_secs_f64();
         let predicted = anchor.map(|a| self.predicted(&a, &input, &target)).transpose()?;
-        let intra = self.intra(&input, &target)?;
-        let (chosen, rejected_bytes) = match predicted {
-            Some(p) => {
-                let (p_bytes, i_bytes) = (p.payload.len(), intra.payload.len());
-                if self.prefer_predicted(&p, &intra, &input, &target) {
-                    (p, i_bytes)
-                } else {
-                    (intra, p_bytes)
-                }
-            }
-            None => (intra, 0),
-        };
+        let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
         let unit = bitstream::write_unit(chosen.frame_type, &chosen.payload);
         let stats = FrameStats {
             frame_type: Some(chosen.frame_type),
@@ -357,13 +348,40 @@ impl SequenceEncoder {
         Ok(Candidate { frame_type, payload: w.bytes, base, faces, base_bytes, displacement_bytes, coefficients: q, reconstruction })
     }
 
+    /// The candidate to keep, and the bytes of the other one if it was coded (else 0).
+    ///
     /// A rate-distortion decision: the test model keeps inter unless intra wins by a fixed
     /// PSNR margin whatever the rates; here the PSNR the predicted frame loses is weighed
-    /// against the rate it saves, at the exchange rate `rd_slope_db`.
-    fn prefer_predicted(&self, p: &Candidate, i: &Candidate, input: &Mesh, target: &Bvh) -> bool {
-        let (dp, di) = (self.distortion(&p.reconstruction, input, target), self.distortion(&i.reconstruction, input, target));
+    /// against the rate it saves, at the exchange rate `rd_slope_db`. The predicted frame is
+    /// first held against the last intra frame's (rate, distortion); only when it loses
+    /// there is this frame also coded intra and compared, which spares most predicted
+    /// frames a second encoding.
+    fn choose(&mut self, predicted: Option<Candidate>, input: &Mesh, target: &Bvh) -> Result<(Candidate, usize), InputError> {
+        let Some(p) = predicted else {
+            let intra = self.intra(input, target)?;
+            if self.config.intra_period > 1 {
+                self.last_intra = Some((intra.payload.len(), self.distortion(&intra.reconstruction, input, target)));
+            }
+            return Ok((intra, 0));
+        };
+        let dp = self.distortion(&p.reconstruction, input, target);
+        if let Some((bytes, di)) = self.last_intra {
+            if self.rd_prefers(p.payload.len(), dp, bytes, di) {
+                return Ok((p, 0));
+            }
+        }
+        let intra = self.intra(input, target)?;
+        let di = self.distortion(&intra.reconstruction, input, target);
+        self.last_intra = Some((intra.payload.len(), di));
+        let (p_bytes, i_bytes) = (p.payload.len(), intra.payload.len());
+        Ok(if self.rd_prefers(p_bytes, dp, i_bytes, di) { (p, i_bytes) } else { (intra, p_bytes) })
+    }
+
+    /// True when a predicted frame of `p_bytes` and distortion `dp` beats an intra frame of
+    /// `i_bytes` and `di`: its PSNR loss is at most `rd_slope_db` per halving of the rate.
+    fn rd_prefers(&self, p_bytes: usize, dp: f64, i_bytes: usize, di: f64) -> bool {
         let loss_db = 10.0 * (dp.max(f64::MIN_POSITIVE) / di.max(f64::MIN_POSITIVE)).log10();
-        let rate_saving = (i.payload.len() as f64 / p.payload.len() as f64).log2();
+        let rate_saving = (i_bytes as f64 / p_bytes as f64).log2();
         loss_db <= self.config.rd_slope_db * rate_saving
     }
 

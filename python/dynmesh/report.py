@@ -346,17 +346,40 @@ def _machine() -> str:
 
 def write_report(results: dict, report_dir: str | os.PathLike, report_file: str = "results.md",
                  command: str | None = None) -> Path:
-    """Writes REPORT_DIR/REPORT_FILE and its plots in REPORT_DIR/<report file stem>/
-    (one PNG per sequence and metric, referenced relatively). Returns the page's path."""
+    """Writes the experiment's section of REPORT_DIR/REPORT_FILE and its plots in
+    REPORT_DIR/<report file stem>/<experiment>/ (one PNG per sequence and metric, referenced
+    relatively). Several experiments share a page: each owns the part between its markers,
+    which a rerun replaces; the rest of the page is kept. Returns the page's path."""
     from .api import write_bytes_atomic
 
     report_dir = Path(report_dir)
     page = report_dir / report_file
-    img_dir = report_dir / Path(report_file).stem
+    img_dir = report_dir / Path(report_file).stem / results["experiment"]
     images = {}
     for s in results["sequences"]:
         for key, label in METRICS:
             png = plot_rd(results, s["name"], key, img_dir / f"rd_{s['name']}_{label.lower()}.png")
             images[(s["name"], key)] = png.relative_to(report_dir).as_posix()
-    write_bytes_atomic(page, markdown(results, images, command).encode())
+    section = _demoted(markdown(results, images, command))
+    old = page.read_text() if page.exists() else ""
+    write_bytes_atomic(page, _with_section(old, results["experiment"], section).encode())
     return page
+
+
+PAGE_TITLE = "# Results\n\nEach section below is written by `dynmesh eval` for one experiment; rerunning an experiment replaces its own section.\n"
+
+
+def _demoted(text: str) -> str:
+    """Every Markdown heading one level deeper, so that sections nest under the page title."""
+    return "\n".join("#" + line if line.startswith("#") else line for line in text.splitlines())
+
+
+def _with_section(page: str, name: str, section: str) -> str:
+    """``page`` with the section between ``name``'s markers replaced (or appended)."""
+    start, end = f"<!-- dynmesh-eval:{name}:start -->", f"<!-- dynmesh-eval:{name}:end -->"
+    block = f"{start}\n{section.rstrip()}\n{end}"
+    if start in page and end in page:
+        return page[: page.index(start)] + block + page[page.index(end) + len(end):]
+    if "<!-- dynmesh-eval:" not in page:
+        page = PAGE_TITLE
+    return page.rstrip() + "\n\n" + block + "\n"
