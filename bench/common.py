@@ -9,6 +9,8 @@ import re
 import sys
 from pathlib import Path
 
+from dynmesh.api import write_bytes_atomic
+
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "benchmarks.md"
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
@@ -37,7 +39,7 @@ def write_section(name: str, body: str) -> None:
         text = text[: text.index(start)] + block + text[text.index(end) + len(end):]
     else:
         text = text.rstrip() + f"\n\n## {name}\n\n{block}\n"
-    DOCS.write_text(text)
+    write_bytes_atomic(DOCS, text.encode())
 
 
 def markdown_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
@@ -45,3 +47,11 @@ def markdown_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str
     rule = "|" + "|".join("---:" for _ in columns) + "|"
     body = ["| " + " | ".join(format(r[k], f) for k, _, f in columns) + " |" for r in rows]
     return "\n".join([head, rule, *body])
+
+
+def check_data(sequences: list[str]) -> bool:
+    """True when every sequence folder is present under ../shared/data; else says which are not."""
+    missing = [s for s in sequences if not (SHARED_DATA / s).is_dir()]
+    if missing:
+        print(f"no data for {', '.join(missing)} under {SHARED_DATA}", file=sys.stderr)
+    return not missing

@@ -744,64 +744,7 @@ mod tests {
 
     /// Unit icosphere with `levels` midpoint subdivisions, outward CCW faces.
     fn icosphere(levels: u32) -> Mesh {
-        let t = (1.0 + 5f64.sqrt()) / 2.0;
-        let mut positions: Vec<[f64; 3]> = [
-            [-1.0, t, 0.0],
-            [1.0, t, 0.0],
-            [-1.0, -t, 0.0],
-            [1.0, -t, 0.0],
-            [0.0, -1.0, t],
-            [0.0, 1.0, t],
-            [0.0, -1.0, -t],
-            [0.0, 1.0, -t],
-            [t, 0.0, -1.0],
-            [t, 0.0, 1.0],
-            [-t, 0.0, -1.0],
-            [-t, 0.0, 1.0],
-        ]
-        .iter()
-        .map(|&p| scale(p, 1.0 / norm(p)))
-        .collect();
-        let mut faces: Vec<[u32; 3]> = vec![
-            [0, 11, 5],
-            [0, 5, 1],
-            [0, 1, 7],
-            [0, 7, 10],
-            [0, 10, 11],
-            [1, 5, 9],
-            [5, 11, 4],
-            [11, 10, 2],
-            [10, 7, 6],
-            [7, 1, 8],
-            [3, 9, 4],
-            [3, 4, 2],
-            [3, 2, 6],
-            [3, 6, 8],
-            [3, 8, 9],
-            [4, 9, 5],
-            [2, 4, 11],
-            [6, 2, 10],
-            [8, 6, 7],
-            [9, 8, 1],
-        ];
-        for _ in 0..levels {
-            let mut mid = BTreeMap::new();
-            let mut split = |u: u32, v: u32, pos: &mut Vec<[f64; 3]>| {
-                *mid.entry((u.min(v), u.max(v))).or_insert_with(|| {
-                    let p = scale(add(pos[u as usize], pos[v as usize]), 0.5);
-                    pos.push(scale(p, 1.0 / norm(p)));
-                    pos.len() as u32 - 1
-                })
-            };
-            let mut next = Vec::new();
-            for [a, b, c] in faces {
-                let ab = split(a, b, &mut positions);
-                let bc = split(b, c, &mut positions);
-                let ca = split(c, a, &mut positions);
-                next.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-            }
-            faces = next;
-        }
+        let (positions, faces) = crate::bvh::testmesh::icosphere(levels, 1.0);
         Mesh::new(positions, faces)
     }
 
