@@ -136,7 +136,8 @@ def cmd_demo(a) -> dict:
         decoded = list(api.decode(result.data))
         dec_s = time.perf_counter() - t0
         m = api.metrics(meshes, decoded)
-        rows.append({"qp": qp, "bytes": len(result.data), "ratio": raw / len(result.data), "d1_psnr": m["d1_psnr"],
+        rows.append({"qp": qp, "bytes": len(result.data), "ratio": raw / len(result.data),
+                     "types": "".join(f["type"] for f in result.frames), "d1_psnr": m["d1_psnr"],
                      "d2_psnr": m["d2_psnr"], "enc_ms": 1000 * enc_s / len(meshes), "dec_ms": 1000 * dec_s / len(meshes)})
         api.write_bytes_atomic(work / f"demo_qp{qp}.dmsh", result.data)
         for i, mesh in enumerate(decoded):
@@ -145,7 +146,7 @@ def cmd_demo(a) -> dict:
     if not a.json:
         print(f"synthetic sequence: {len(meshes)} frames, {min(m.vertex_count for m in meshes)}-"
               f"{max(m.vertex_count for m in meshes)} vertices, raw OBJ {raw} bytes; files in {work}")
-        print(_table(rows, [("qp", "QP", "d"), ("bytes", "bytes", "d"), ("ratio", "vs OBJ", ".0f"),
+        print(_table(rows, [("qp", "QP", "d"), ("bytes", "bytes", "d"), ("ratio", "vs OBJ", ".0f"), ("types", "frame types", "s"),
                             ("d1_psnr", "D1 PSNR", ".2f"), ("d2_psnr", "D2 PSNR", ".2f"),
                             ("enc_ms", "enc ms/frame", ".1f"), ("dec_ms", "dec ms/frame", ".1f")]))
     return {"workdir": str(work), "raw_bytes": raw, "rates": rows}
