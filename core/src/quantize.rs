@@ -6,6 +6,8 @@
 //! vertices through the inverse transform, so they are quantized more finely. Rounding has a
 //! dead zone: magnitudes are rounded down unless their fraction reaches `1 - ROUNDING_BIAS`.
 
+use rayon::prelude::*;
+
 /// QPs the codec accepts.
 pub const QP_RANGE: std::ops::RangeInclusive<i32> = -24..=63;
 /// Ratio of the scales of two successive levels of detail.
@@ -59,22 +61,50 @@ impl AqParams {
 /// (an isolated vertex counts as valence 1), 1 without.
 pub fn vertex_weights(n: usize, faces: &[[u32; 3]], aq: Option<&AqParams>) -> Vec<f64> {
     let Some(aq) = aq else { return vec![1.0; n] };
-    let mut neighbours = vec![Vec::new(); n];
+    valences(n, faces).into_iter().map(|k| aq.alpha * k.max(1) as f64 / aq.h).collect()
+}
+
+/// Number of distinct neighbours of each of `n` vertices. Neighbour lists are laid out in
+/// one array by a counting pass (no per-vertex allocation: this runs on every decoded
+/// frame's subdivided mesh), then each short list is sorted to count its distinct entries.
+fn valences(n: usize, faces: &[[u32; 3]]) -> Vec<u32> {
+    let mut start = vec![0usize; n + 1];
     for f in faces {
-        for k in 0..3 {
-            let (a, b) = (f[k] as usize, f[(k + 1) % 3]);
-            neighbours[a].push(b);
-            neighbours[b as usize].push(f[k]);
+        for &v in f {
+            start[v as usize + 1] += 2;
         }
     }
-    neighbours
-        .into_iter()
-        .map(|mut l| {
-            l.sort_unstable();
-            l.dedup();
-            aq.alpha * l.len().max(1) as f64 / aq.h
-        })
-        .collect()
+    for v in 0..n {
+        start[v + 1] += start[v];
+    }
+    let mut fill = start.clone();
+    let mut neighbours = vec![0u32; start[n]];
+    for f in faces {
+        for k in 0..3 {
+            let (a, b) = (f[k], f[(k + 1) % 3]);
+            neighbours[fill[a as usize]] = b;
+            fill[a as usize] += 1;
+            neighbours[fill[b as usize]] = a;
+            fill[b as usize] += 1;
+        }
+    }
+    (0..n).into_par_iter().map(|v| distinct_count(&neighbours[start[v]..start[v + 1]])).collect()
+}
+
+/// Number of distinct values in a short list, sorted on the stack when it fits.
+fn distinct_count(list: &[u32]) -> u32 {
+    let distinct = |sorted: &[u32]| sorted.len() as u32 - sorted.windows(2).filter(|w| w[0] == w[1]).count() as u32;
+    let mut small = [0u32; 32];
+    if list.len() <= small.len() {
+        let small = &mut small[..list.len()];
+        small.copy_from_slice(list);
+        small.sort_unstable();
+        distinct(small)
+    } else {
+        let mut large = list.to_vec();
+        large.sort_unstable();
+        distinct(&large)
+    }
 }
 
 /// Quantizes with the lattice shifted by `offset` (in quantization steps).
