@@ -16,7 +16,7 @@ use crate::displace;
 use crate::ec;
 use crate::error::InputError;
 use crate::grid::{Grid, BITS_RANGE};
-use crate::mesh::Mesh;
+use crate::mesh::{cross, norm, sub, Mesh};
 use crate::motion;
 use crate::quantize::{self, AqParams};
 use crate::subdivide::{Scheme, Subdivision};
@@ -385,12 +385,24 @@ impl SequenceEncoder {
         loss_db <= self.config.rd_slope_db * rate_saving
     }
 
-    /// Symmetric mean squared vertex-to-surface distance (grid units) between a
-    /// reconstruction (input units) and the input (grid units): an estimate of D1 that
-    /// needs no sampling.
+    /// An estimate of D1 that needs no sampling, in grid units: the larger of the squared
+    /// distance from the reconstruction to the input surface, measured at face centroids and
+    /// weighted by face area (D1 samples the surface uniformly, so a few stretched or folded
+    /// triangles weigh what their area weighs), and the mean squared distance from the
+    /// input's vertices to the reconstruction's surface.
     fn distortion(&self, reconstruction: &Mesh, input: &Mesh, target: &Bvh) -> f64 {
         let rec: Vec<[f64; 3]> = reconstruction.positions.iter().map(|&p| self.header.grid.to_grid(p)).collect();
-        let forward = mean_squared_distance(&rec, target);
+        let (weighted, area) = reconstruction
+            .faces
+            .par_iter()
+            .map(|f| {
+                let c = f.map(|v| rec[v as usize]);
+                let centroid = std::array::from_fn(|k| (c[0][k] + c[1][k] + c[2][k]) / 3.0);
+                let a = norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
+                (a * target.closest_point(centroid).map_or(0.0, |h| h.dist2), a)
+            })
+            .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+        let forward = if area > 0.0 { weighted / area } else { 0.0 };
         let backward = mean_squared_distance(&input.positions, &Bvh::new(&rec, &reconstruction.faces));
         forward.max(backward)
     }
