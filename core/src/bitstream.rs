@@ -210,7 +210,7 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
 }
 
 fn validate_header(h: &SequenceHeader) -> Result<(), String> {
-    if !h.grid.origin.iter().all(|c| c.is_finite()) || !(h.grid.step.is_finite() && h.grid.step > 0.0) {
+    if !h.grid.origin.iter().all(|c| c.is_finite()) || !h.grid.step.is_finite() || h.grid.step <= 0.0 {
         return Err("invalid position grid".into());
     }
     if !BITS_RANGE.contains(&h.grid.bits) {

@@ -135,7 +135,7 @@ impl Encoder {
         }
         self.bit(&mut m.prefix[prefix as usize], false);
         let suffix_bits = nbits - 1;
-        let suffix = (v & ((1u64 << suffix_bits) - 1)) as u64;
+        let suffix = v & ((1u64 << suffix_bits) - 1);
         // Suffix may exceed 32 bits only for value near u32::MAX with k > 0; split it.
         if suffix_bits > 16 {
             self.bypass((suffix >> 16) as u32, suffix_bits - 16);

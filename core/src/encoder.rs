@@ -33,7 +33,7 @@ pub enum InterMode {
     Nns,
     /// ... with motion estimation before the matching.
     NnsMe,
-    /// ... and QEM refinement of the matches (the full method).
+    /// ... and refinement of the matches (the full method; see `anchor` for which refinement).
     NnsMeQem,
 }
 
@@ -272,7 +272,7 @@ impl SequenceEncoder {
             tracking::tracked_positions(&reference.positions, &r.input, input)
         } else {
             let stages = self.config.inter.anchor_stages()?;
-            anchor::anchor_mesh(&reference, input, &AnchorParams { stages, ..AnchorParams::default() }).positions
+            anchor::anchor_mesh(&reference, input, &AnchorParams { stages }).positions
         };
         Some(moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect())
     }

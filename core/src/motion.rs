@@ -122,8 +122,8 @@ pub fn encode_motion(enc: &mut ec::Encoder, reference: &[[u32; 3]], current: &[[
         let skip = residual == [0; 3];
         enc.bit(&mut models.skip[ctx], skip);
         if !skip {
-            for k in 0..3 {
-                enc.int(&mut models.residual[k], residual[k] as i32);
+            for (model, r) in models.residual.iter_mut().zip(residual) {
+                enc.int(model, r as i32);
             }
         }
         motion[v] = Some(actual);

@@ -243,7 +243,7 @@ def parser() -> argparse.ArgumentParser:
                    help=f"frames per group; each group starts with an intra frame, 1 = all intra (default {d['intra_period']})")
     p.add_argument("--inter", choices=["none", "nns", "nns+me", "nns+me+qem"], default=d["inter"],
                    help="how predicted frames get their base mesh when the topology changes: none = never (intra), "
-                        "nns = nearest-neighbour anchor, +me = with motion estimation, +qem = with QEM refinement "
+                        "nns = nearest-neighbour anchor, +me = with motion estimation, +qem = with refinement onto the surface "
                         f"(default {d['inter']})")
     p.add_argument("--rd-slope", type=float, default=d["rd_slope"],
                    help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
