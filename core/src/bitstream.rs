@@ -42,6 +42,11 @@ pub enum FrameType {
     Predicted = 1,
 }
 
+/// Unit type byte of a texture unit: it follows the frame unit it belongs to and carries
+/// that frame's texture data (see `docs/bitstream.md`), which the geometry decoder passes
+/// through without reading it.
+pub const TEXTURE_UNIT: u8 = 2;
+
 /// One frame unit as found in the stream.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Unit<'a> {
@@ -49,6 +54,8 @@ pub struct Unit<'a> {
     pub payload: &'a [u8],
     /// Offset of the payload in the whole stream.
     pub offset: u64,
+    /// The payload of the texture unit that follows this frame's unit, with its offset.
+    pub texture: Option<(&'a [u8], u64)>,
 }
 
 /// Little-endian writer.
@@ -230,16 +237,26 @@ fn validate_header(h: &SequenceHeader) -> Result<(), String> {
 
 /// Serializes one frame unit.
 pub fn write_unit(frame_type: FrameType, payload: &[u8]) -> Vec<u8> {
+    typed_unit(frame_type as u8, payload)
+}
+
+/// Serializes a texture unit, to be placed right after its frame's unit.
+pub fn write_texture_unit(payload: &[u8]) -> Vec<u8> {
+    typed_unit(TEXTURE_UNIT, payload)
+}
+
+fn typed_unit(unit_type: u8, payload: &[u8]) -> Vec<u8> {
     let mut w = Writer::default();
-    w.u8(frame_type as u8);
+    w.u8(unit_type);
     w.block(payload);
     let crc = crc32fast::hash(&w.bytes);
     w.u32(crc);
     w.bytes
 }
 
-/// Splits the stream after the header into frame units, checking lengths and CRCs.
-/// Returns exactly `header.frame_count` units or an error naming the first bad frame.
+/// Splits the stream after the header into frame units, checking lengths and CRCs; a texture
+/// unit is attached to the frame unit before it. Returns exactly `header.frame_count` units
+/// or an error naming the first bad frame.
 pub fn read_units<'a>(data: &'a [u8], start: usize, frame_count: u32) -> Result<Vec<Unit<'a>>, DecodeError> {
     // Each unit takes at least UNIT_OVERHEAD bytes, which bounds the allocation.
     let plausible = (data.len().saturating_sub(start) / UNIT_OVERHEAD) as u32;
@@ -249,9 +266,20 @@ pub fn read_units<'a>(data: &'a [u8], start: usize, frame_count: u32) -> Result<
     let mut units = Vec::with_capacity(frame_count as usize);
     let mut pos = start;
     for f in 0..frame_count {
-        let (unit, next) = read_unit(data, pos, f)?;
-        units.push(unit);
+        let (t, payload, offset, next) = read_unit(data, pos, f)?;
+        let frame_type = match t {
+            0 => FrameType::Intra,
+            1 => FrameType::Predicted,
+            _ => return Err(DecodeError::new(Some(f), pos as u64, format!("unit type {t} where a frame unit was expected"))),
+        };
         pos = next;
+        let mut texture = None;
+        if data.get(pos) == Some(&TEXTURE_UNIT) {
+            let (_, payload, offset, next) = read_unit(data, pos, f)?;
+            texture = Some((payload, offset));
+            pos = next;
+        }
+        units.push(Unit { frame_type, payload, offset, texture });
     }
     if pos != data.len() {
         return Err(DecodeError::new(None, pos as u64, format!("{} unexpected bytes after the last frame", data.len() - pos)));
@@ -259,21 +287,17 @@ pub fn read_units<'a>(data: &'a [u8], start: usize, frame_count: u32) -> Result<
     Ok(units)
 }
 
-fn read_unit(data: &[u8], pos: usize, frame: u32) -> Result<(Unit<'_>, usize), DecodeError> {
+/// The unit at `pos`: its type byte, payload, payload offset and the position after it.
+fn read_unit(data: &[u8], pos: usize, frame: u32) -> Result<(u8, &[u8], u64, usize), DecodeError> {
     let mut r = Reader::new(&data[pos..], pos as u64, Some(frame));
-    let t = r.u8("frame type")?;
-    let (payload, offset) = r.block("frame payload")?;
+    let t = r.u8("unit type")?;
+    let (payload, offset) = r.block("unit payload")?;
     let end = pos + data[pos..].len() - r.remaining();
-    let crc = r.u32("frame CRC")?;
+    let crc = r.u32("unit CRC")?;
     if crc != crc32fast::hash(&data[pos..end]) {
-        return Err(DecodeError::new(Some(frame), end as u64, "frame CRC mismatch (corrupted data)"));
+        return Err(DecodeError::new(Some(frame), end as u64, "unit CRC mismatch (corrupted data)"));
     }
-    let frame_type = match t {
-        0 => FrameType::Intra,
-        1 => FrameType::Predicted,
-        _ => return Err(DecodeError::new(Some(frame), pos as u64, format!("unknown frame type {t}"))),
-    };
-    Ok((Unit { frame_type, payload, offset }, end + 4))
+    Ok((t, payload, offset, end + 4))
 }
 
 #[cfg(test)]
@@ -323,6 +347,27 @@ mod tests {
             let r = read_header(&t).and_then(|(h, st)| read_units(&t, st, h.frame_count));
             assert!(r.is_err(), "flip at bit {i}");
         }
+    }
+
+    #[test]
+    fn texture_units_attach_to_their_frame_and_cannot_stand_for_one() {
+        let mut s = write_header(&header());
+        s.extend(write_unit(FrameType::Intra, b"geometry"));
+        s.extend(write_texture_unit(b"atlas"));
+        s.extend(write_unit(FrameType::Predicted, b"motion"));
+        let (h, start) = read_header(&s).unwrap();
+        let units = read_units(&s, start, h.frame_count).unwrap();
+        let (texture, offset) = units[0].texture.unwrap();
+        assert_eq!(texture, b"atlas");
+        assert_eq!(&s[offset as usize..][..5], b"atlas");
+        assert_eq!(units[1].texture, None);
+        assert_eq!(units[1].payload, b"motion");
+
+        let mut t = write_header(&header());
+        t.extend(write_texture_unit(b"atlas"));
+        t.extend(write_unit(FrameType::Intra, b"geometry"));
+        let e = read_units(&t, start, h.frame_count).unwrap_err();
+        assert!(e.reason.contains("unit type 2"), "{e}");
     }
 
     #[test]

@@ -74,6 +74,8 @@ struct Span {
     frame_type: FrameType,
     offset: usize,
     len: usize,
+    /// Offset and length of the frame's texture unit payload, if it has one.
+    texture: Option<(usize, usize)>,
 }
 
 /// A checked stream whose frames can be decoded in any order. Predicted frames are decoded
@@ -93,7 +95,12 @@ impl Decoder {
         let units = bitstream::read_units(&data, start, header.frame_count)?;
         let spans = units
             .iter()
-            .map(|u| Span { frame_type: u.frame_type, offset: u.offset as usize, len: u.payload.len() })
+            .map(|u| Span {
+                frame_type: u.frame_type,
+                offset: u.offset as usize,
+                len: u.payload.len(),
+                texture: u.texture.map(|(t, o)| (o as usize, t.len())),
+            })
             .collect();
         Ok(Self { header, spans, data, last: None })
     }
@@ -148,9 +155,28 @@ impl Decoder {
         Ok(mesh)
     }
 
+    /// The payload of frame `index`'s texture unit and its offset in the stream; None when
+    /// the frame has none (an untextured stream, or a frame with nothing to add).
+    pub fn texture_payload(&self, index: u32) -> Result<Option<(&[u8], u64)>, DecodeError> {
+        let s = self.span(index)?;
+        Ok(s.texture.map(|(o, n)| (&self.data[o..o + n], o as u64)))
+    }
+
+    /// The frame index and base mesh (positions in the input's units, as
+    /// [`base_in_world_units`] gives them, and faces) of the frame decoded last: the texture
+    /// atlas of an intra frame is coded on it. None before the first decode.
+    pub fn last_base(&self) -> Option<(u32, Mesh)> {
+        self.last.as_ref().map(|(i, s)| (*i, Mesh::new(base_in_world_units(&self.header, &s.positions), s.faces.clone())))
+    }
+
+    fn span(&self, index: u32) -> Result<&Span, DecodeError> {
+        self.spans.get(index as usize).ok_or_else(|| DecodeError::new(Some(index), 0, "no such frame"))
+    }
+
     fn unit(&self, index: u32) -> Result<Unit<'_>, DecodeError> {
-        let s = self.spans.get(index as usize).ok_or_else(|| DecodeError::new(Some(index), 0, "no such frame"))?;
-        Ok(Unit { frame_type: s.frame_type, payload: &self.data[s.offset..s.offset + s.len], offset: s.offset as u64 })
+        let s = self.span(index)?;
+        let payload = &self.data[s.offset..s.offset + s.len];
+        Ok(Unit { frame_type: s.frame_type, payload, offset: s.offset as u64, texture: None })
     }
 
     /// Decodes frame `f`'s base mesh and coefficients (a predicted frame on `reference`);
@@ -230,11 +256,21 @@ pub fn read_payload<'a>(unit: &Unit<'a>, frame: u32) -> Result<Payload<'a>, Deco
     Ok(Payload { reference_distance, qp, base, base_offset, coefficients_predicted, coefficients, coefficients_offset })
 }
 
+/// Base mesh positions on the base mesh grid, in units of the full-resolution grid.
+pub fn base_in_grid_units(h: &SequenceHeader, positions: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    let base_grid = h.grid.coarser(h.base_bits);
+    positions.iter().map(|q| base_grid.to_world(q.map(|c| c as f64))).collect()
+}
+
+/// Base mesh positions on the base mesh grid, in the input's units: the base mesh that the
+/// encoder reports and the decoder's [`Decoder::last_base`] gives, bit for bit the same.
+pub fn base_in_world_units(h: &SequenceHeader, positions: &[[u32; 3]]) -> Vec<[f64; 3]> {
+    base_in_grid_units(h, positions).into_iter().map(|p| h.grid.to_world(p)).collect()
+}
+
 /// Subdivision of the decoded base mesh (integer positions on the base mesh grid).
 pub fn subdivided_base(h: &SequenceHeader, positions: &[[u32; 3]], faces: &[[u32; 3]]) -> Subdivision {
-    let base_grid = h.grid.coarser(h.base_bits);
-    let p: Vec<[f64; 3]> = positions.iter().map(|q| base_grid.to_world(q.map(|c| c as f64))).collect();
-    subdivide(&p, faces, h.subdiv_iterations, h.scheme)
+    subdivide(&base_in_grid_units(h, positions), faces, h.subdiv_iterations, h.scheme)
 }
 
 /// The quantization scale of every vertex of `sub`: its level's scale, times its

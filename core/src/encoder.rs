@@ -158,6 +158,9 @@ pub struct EncodedFrame {
     pub unit: Vec<u8>,
     /// Exactly what the decoder will output for this frame.
     pub reconstruction: Mesh,
+    /// The decoded base mesh, in the input's units: what the texture atlas of an intra
+    /// frame is made on. `reconstruction` is its subdivision, face for face.
+    pub base: Mesh,
     pub stats: FrameStats,
 }
 
@@ -257,9 +260,10 @@ impl SequenceEncoder {
             anchor_seconds: if may_predict { anchor_seconds } else { 0.0 },
             seconds: start.elapsed().as_secs_f64(),
         };
+        let base = Mesh::new(decoder::base_in_world_units(&self.header, &chosen.base), chosen.faces.clone());
         self.reference = Some(Reference { input, base: chosen.base, faces: chosen.faces, coefficients: chosen.coefficients });
         self.frame += 1;
-        Ok(EncodedFrame { unit, reconstruction: chosen.reconstruction, stats })
+        Ok(EncodedFrame { unit, reconstruction: chosen.reconstruction, base, stats })
     }
 
     /// The current frame's base mesh positions (base grid units) with the reference base
@@ -267,7 +271,7 @@ impl SequenceEncoder {
     fn anchor_positions(&self, input: &Mesh, same_topology: bool) -> Option<Vec<[u32; 3]>> {
         let r = self.reference.as_ref()?;
         let base_grid = self.header.grid.coarser(self.header.base_bits);
-        let reference = Mesh::new(r.base.iter().map(|q| base_grid.to_world(q.map(|c| c as f64))).collect(), r.faces.clone());
+        let reference = Mesh::new(decoder::base_in_grid_units(&self.header, &r.base), r.faces.clone());
         let moved = if same_topology {
             tracking::tracked_positions(&reference.positions, &r.input, input)
         } else {

@@ -106,11 +106,13 @@ fn payload_flips_behind_a_valid_crc_never_panic() {
 fn unknown_frame_types_are_rejected() {
     let mut d = stream(&EncoderConfig { subdiv_iterations: 1, ..Default::default() });
     let (_, start) = bitstream::read_header(&d).unwrap();
-    d[start] = 7;
-    assert!(fix_crcs(&mut d));
-    let e = decode_all(&d).unwrap_err();
-    assert_eq!(e.frame, Some(0));
-    assert!(e.reason.contains("frame type"));
+    for t in [7, bitstream::TEXTURE_UNIT] {
+        d[start] = t;
+        assert!(fix_crcs(&mut d));
+        let e = decode_all(&d).unwrap_err();
+        assert_eq!(e.frame, Some(0));
+        assert!(e.reason.contains(&format!("unit type {t} where a frame unit was expected")), "{e}");
+    }
     assert_eq!((FrameType::Intra as u8, FrameType::Predicted as u8), (0, 1));
 }
 
