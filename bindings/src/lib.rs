@@ -3,6 +3,9 @@
 //! Every function releases the GIL while the core works, so Python threads can encode
 //! frames side by side.
 
+mod colour;
+mod transfer;
+mod uv;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
 use pyo3::create_exception;
@@ -24,7 +27,7 @@ fn decode_error(e: CoreDecodeError) -> PyErr {
     DecodeError::new_err((e.to_string(), e.frame, e.offset))
 }
 
-fn positions_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 3]>> {
+pub(crate) fn positions_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 3]>> {
     let v = a.as_array();
     if v.ncols() != 3 {
         return Err(PyValueError::new_err("positions must have shape (N, 3)"));
@@ -32,7 +35,7 @@ fn positions_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 3]>> {
     Ok(v.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect())
 }
 
-fn faces_of(a: &PyReadonlyArray2<i64>, vertex_count: usize) -> PyResult<Vec<[u32; 3]>> {
+pub(crate) fn faces_of(a: &PyReadonlyArray2<i64>, vertex_count: usize) -> PyResult<Vec<[u32; 3]>> {
     let v = a.as_array();
     if v.ncols() != 3 {
         return Err(PyValueError::new_err("faces must have shape (M, 3)"));
@@ -179,17 +182,20 @@ impl Encoder {
         PyBytes::new(py, &dynmesh::bitstream::write_header(self.inner.header()))
     }
 
-    /// Encodes the next frame; returns (unit bytes, stats dict, (positions, faces) of the reconstruction).
+    /// Encodes the next frame; returns (unit bytes, stats dict, (positions, faces) of the
+    /// reconstruction, (positions, faces) of the decoded base mesh).
+    #[allow(clippy::type_complexity)]
     fn encode_frame<'py>(
         &mut self,
         py: Python<'py>,
         positions: PyReadonlyArray2<'py, f64>,
         faces: PyReadonlyArray2<'py, i64>,
-    ) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyDict>, MeshArrays<'py>)> {
+    ) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyDict>, MeshArrays<'py>, MeshArrays<'py>)> {
         let mesh = mesh_of(&positions, &faces)?;
         let inner = &mut self.inner;
         let out = py.allow_threads(|| inner.encode(&mesh)).map_err(|e| PyValueError::new_err(e.0))?;
-        Ok((PyBytes::new(py, &out.unit), stats_dict(py, &out.stats)?, arrays_of(py, out.reconstruction)))
+        let unit = PyBytes::new(py, &out.unit);
+        Ok((unit, stats_dict(py, &out.stats)?, arrays_of(py, out.reconstruction), arrays_of(py, out.base)))
     }
 }
 
@@ -235,6 +241,23 @@ impl Decoder {
         let mesh = py.allow_threads(|| inner.decode_frame(index)).map_err(decode_error)?;
         Ok(arrays_of(py, mesh))
     }
+
+    /// The payload of frame `index`'s texture unit and its offset in the stream, or None.
+    fn texture_payload<'py>(&self, py: Python<'py>, index: u32) -> PyResult<Option<(Bound<'py, PyBytes>, u64)>> {
+        let t = self.inner.texture_payload(index).map_err(decode_error)?;
+        Ok(t.map(|(data, offset)| (PyBytes::new(py, data), offset)))
+    }
+
+    /// (frame index, (positions, faces)) of the base mesh of the frame decoded last, or None.
+    fn last_base<'py>(&self, py: Python<'py>) -> Option<(u32, MeshArrays<'py>)> {
+        self.inner.last_base().map(|(i, base)| (i, arrays_of(py, base)))
+    }
+}
+
+/// A texture unit carrying `payload`, to be placed right after its frame's unit.
+#[pyfunction]
+fn texture_unit<'py>(py: Python<'py>, payload: &[u8]) -> Bound<'py, PyBytes> {
+    PyBytes::new(py, &dynmesh::bitstream::write_texture_unit(payload))
 }
 
 /// D1/D2 distortion between a reference and a decoded mesh, sampled on the grid over
@@ -296,6 +319,10 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Encoder>()?;
     m.add_class::<Decoder>()?;
     m.add_function(wrap_pyfunction!(mesh_distortion, m)?)?;
+    m.add_function(wrap_pyfunction!(texture_unit, m)?)?;
+    colour::register(m)?;
+    uv::register(m)?;
+    transfer::register(m)?;
     m.add("DecodeError", m.py().get_type::<DecodeError>())?;
     Ok(())
 }

@@ -51,7 +51,7 @@
 //! traversal, faces in traversal order.
 
 
-use crate::ec::{BitModel, Decoder, Encoder, IntModel, UIntModel};
+use crate::ec::{BitModel, DecSide, Decoder, EncSide, Encoder, IntModel, Side, UIntModel};
 use crate::mesh::{edge_key, EdgeMap};
 
 /// Most faces one byte of stream may announce: a hostile stream costs at most this much
@@ -137,54 +137,6 @@ pub fn decode_base(data: &[u8], bits: u32) -> Result<(Vec<[u32; 3]>, Vec<[u32; 3
     let positions = code_positions(&mut side, &conn.faces, n_vertices, bits, None)?;
     side.0.finish().map_err(|e| format!("base mesh: {e}"))?;
     Ok((positions, conn.faces))
-}
-
-/// One interface over the encoder and the decoder, so the traversal and the predictions are
-/// written once and cannot drift apart: the encoder codes and returns the value it is given,
-/// the decoder ignores it and returns what it reads.
-trait Side {
-    fn bit(&mut self, m: &mut BitModel, v: bool) -> bool;
-    fn uint(&mut self, m: &mut UIntModel, v: u32) -> u32;
-    fn int(&mut self, m: &mut IntModel, v: i32) -> i32;
-    /// True once the decoder only produces garbage; stops every loop.
-    fn failed(&self) -> bool;
-}
-
-struct EncSide(Encoder);
-
-impl Side for EncSide {
-    fn bit(&mut self, m: &mut BitModel, v: bool) -> bool {
-        self.0.bit(m, v);
-        v
-    }
-    fn uint(&mut self, m: &mut UIntModel, v: u32) -> u32 {
-        self.0.uint(m, v);
-        v
-    }
-    fn int(&mut self, m: &mut IntModel, v: i32) -> i32 {
-        self.0.int(m, v);
-        v
-    }
-    fn failed(&self) -> bool {
-        false
-    }
-}
-
-struct DecSide<'a>(Decoder<'a>);
-
-impl Side for DecSide<'_> {
-    fn bit(&mut self, m: &mut BitModel, _: bool) -> bool {
-        self.0.bit(m)
-    }
-    fn uint(&mut self, m: &mut UIntModel, _: u32) -> u32 {
-        self.0.uint(m)
-    }
-    fn int(&mut self, m: &mut IntModel, _: i32) -> i32 {
-        self.0.int(m)
-    }
-    fn failed(&self) -> bool {
-        self.0.exhausted()
-    }
 }
 
 /// The encoder's knowledge of the input mesh: which faces are still to code and how

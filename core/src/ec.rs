@@ -323,6 +323,64 @@ impl<'a> Decoder<'a> {
     }
 }
 
+/// One interface over the encoder and the decoder, so that a coder's traversal and
+/// predictions are written once and cannot drift apart: the encoder codes and returns the
+/// value it is given, the decoder ignores it and returns what it reads.
+pub trait Side {
+    fn bit(&mut self, m: &mut BitModel, v: bool) -> bool;
+    fn uint(&mut self, m: &mut UIntModel, v: u32) -> u32;
+    fn int(&mut self, m: &mut IntModel, v: i32) -> i32;
+    fn bypass(&mut self, v: u32, n: u32) -> u32;
+    /// True once the decoder only produces garbage; stops every loop.
+    fn failed(&self) -> bool;
+}
+
+/// The encoding [`Side`].
+pub struct EncSide(pub Encoder);
+
+impl Side for EncSide {
+    fn bit(&mut self, m: &mut BitModel, v: bool) -> bool {
+        self.0.bit(m, v);
+        v
+    }
+    fn uint(&mut self, m: &mut UIntModel, v: u32) -> u32 {
+        self.0.uint(m, v);
+        v
+    }
+    fn int(&mut self, m: &mut IntModel, v: i32) -> i32 {
+        self.0.int(m, v);
+        v
+    }
+    fn bypass(&mut self, v: u32, n: u32) -> u32 {
+        self.0.bypass(v, n);
+        v
+    }
+    fn failed(&self) -> bool {
+        false
+    }
+}
+
+/// The decoding [`Side`].
+pub struct DecSide<'a>(pub Decoder<'a>);
+
+impl Side for DecSide<'_> {
+    fn bit(&mut self, m: &mut BitModel, _: bool) -> bool {
+        self.0.bit(m)
+    }
+    fn uint(&mut self, m: &mut UIntModel, _: u32) -> u32 {
+        self.0.uint(m)
+    }
+    fn int(&mut self, m: &mut IntModel, _: i32) -> i32 {
+        self.0.int(m)
+    }
+    fn bypass(&mut self, _: u32, n: u32) -> u32 {
+        self.0.bypass(n)
+    }
+    fn failed(&self) -> bool {
+        self.0.exhausted()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -28,3 +28,7 @@ pub mod bitstream;
 pub mod encoder;
 pub mod decoder;
 pub mod metrics;
+pub mod texture;
+pub mod uvcoder;
+pub mod render;
+pub mod transfer;

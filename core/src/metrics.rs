@@ -1,11 +1,19 @@
-//! D1 / D2 geometry PSNR as the MPEG V-DMC common test conditions measure it with the MPEG tool
-//! `mmetric` (`sample --mode grid --useNormal --useFixedPoint` followed by `compare --mode pcc`,
-//! whose distance code is the MPEG `pc_error` / dmetric library).
+//! D1 / D2 geometry PSNR and Y / Cb / Cr texture PSNR as the MPEG V-DMC common test conditions
+//! measure them with the MPEG tool `mmetric` (`sample --mode grid --useNormal --useFixedPoint`
+//! followed by `compare --mode pcc`, whose distance code is the MPEG `pc_error` / dmetric
+//! library).
 //!
 //! Pipeline: [`SamplingGrid::over_box`] lays one grid over the reference box, [`sample_grid`]
 //! turns each mesh into a point cloud with per-point normals, [`distortion`] computes the
 //! symmetric point-to-point (D1) and point-to-plane (D2) mean squared errors, [`psnr`] converts
 //! an MSE into dB. [`mesh_psnr`] chains the four.
+//!
+//! Texture: [`sample_grid_coloured`] samples a textured mesh at the same points, reading the
+//! texture bilinearly at each sample's UV and converting to BT.709 YCbCr in [0, 1];
+//! [`colour_mse`] is the symmetric per-channel error (for each point, the squared difference to
+//! the colour of its nearest points in the other cloud), [`colour_psnr`] converts with peak 1.
+//! [`textured_mse`] / [`textured_psnr`] chain them with the geometry figures, sharing one pass of
+//! nearest-neighbour queries.
 //!
 //! # What is mirrored from mmetric
 //! - **Grid.** The box corner is rounded down and the far corner up to multiples of 1/65536;
@@ -34,6 +42,9 @@
 //!   here a nearest-point query plus a search within the tie radius yields the same tie set, and
 //!   since D1 uses only the distance and D2 averages over the whole tie set, the order of equal
 //!   neighbours (unspecified in nanoflann) does not matter.
+//! - **Colour** (`mseSpace = 1`). The colour a point of A is compared with is the mean colour of
+//!   the same tie set in B; squared differences per channel in YCbCr [0, 1], mean over the
+//!   points of A, the larger direction per channel, PSNR `10 log10(1 / mse)`.
 //!
 //! Checked against: basketball_player frame 12 against frame 11 (grid over frame 11's box, grid
 //! size 1024, peak 18.73565) gives D1 70.790 dB and D2 71.908 dB, mmetric's figures to 1e-3 dB.
@@ -53,12 +64,24 @@
 //!   reference whose bounding box has zero thickness.
 //! - mmetric's own fallback when no box is given (cubic box of the mesh itself) is not offered:
 //!   the caller always passes the reference box.
+//! - Colour (checked against the sources, not against mmetric runs). mmetric's sampler keeps
+//!   samples that differ only in colour; pc_error then averages both their normals and their
+//!   colours. [`sample_grid_coloured`] averages the colours the same way but keeps the normals of
+//!   [`sample_grid`] (distinct (position, normal) only), so that its geometry is exactly the
+//!   geometric sampler's. The normals can differ from mmetric's only at a point hit by faces of
+//!   two or more different normals where faces of one normal disagree in colour (a texture seam
+//!   on a crease). mmetric rounds each sample's RGB to 8 bits before pc_error, and pc_error
+//!   rounds the mean colour of equidistant neighbours to 8 bits and weighs each neighbour by the
+//!   number of samples merged into it; here colours stay unrounded and equidistant neighbours
+//!   count once each. pc_error's BT.709 coefficients are rounded to four decimals; [`ycbcr709`]
+//!   uses the exact ones.
 //! - Like mmetric, the number of rays per triangle grows with the triangle's extent in grid
 //!   steps: a wildly misplaced vertex in a decoded mesh makes sampling slow, not wrong.
 
 use rayon::prelude::*;
 
 use crate::mesh::{dot, sub};
+use crate::texture::{ycbcr709, Texture, UvMesh};
 
 /// Fixed-point scale of the grid corner and step (16 fractional bits).
 const FIXED_POINT: f32 = 65536.0;
@@ -119,16 +142,54 @@ type SampleKey = [u32; 6];
 /// Faces with an out-of-range index or (near) zero area are skipped. A grid whose step is not a
 /// positive finite number gives an empty cloud. Deterministic and independent of thread count.
 pub fn sample_grid(positions: &[[f64; 3]], faces: &[[u32; 3]], grid: &SamplingGrid) -> PointCloud {
+    merge_positions(&raw_samples(positions, faces, grid, |_, _| ()))
+}
+
+/// [`sample_grid`] of `mesh` (the same points and normals, in the same order) together with each
+/// point's colour as BT.709 YCbCr in [0, 1] ([`ycbcr709`]): `texture` is read bilinearly
+/// ([`Texture::sample`]) at the UV interpolated at each raw sample. Raw samples equal in position,
+/// normal *and* colour count once (mmetric's sampler keeps all three in its duplicate test); a
+/// point's colour is the plain mean of the colours of the distinct samples merged into it. A face
+/// without a valid UV triangle (missing, or an index out of range) reads texel (0, 0).
+/// Deterministic and independent of thread count.
+pub fn sample_grid_coloured(
+    mesh: &UvMesh,
+    texture: &Texture,
+    grid: &SamplingGrid,
+) -> (PointCloud, Vec<[f64; 3]>) {
+    let samples = raw_samples(&mesh.mesh.positions, &mesh.mesh.faces, grid, |face, weights| {
+        texture.sample(uv_at(mesh, face, weights)).map(f64::to_bits)
+    });
+    let colours = position_runs(&samples).map(mean_colour).collect();
+    (merge_positions(&samples), colours)
+}
+
+/// The sorted, deduplicated raw samples of `(positions, faces)` on `grid`, each carrying
+/// `payload(face index, barycentric weights of the face's corners in their original order)`.
+/// Samples equal in position, normal and payload count once.
+fn raw_samples<C, F>(
+    positions: &[[f64; 3]],
+    faces: &[[u32; 3]],
+    grid: &SamplingGrid,
+    payload: F,
+) -> Vec<(SampleKey, C)>
+where
+    C: Ord + Send,
+    F: Fn(usize, [f64; 3]) -> C + Sync,
+{
     let Some(g) = GridF32::new(grid) else {
-        return PointCloud::default();
+        return Vec::new();
     };
-    let mut samples: Vec<SampleKey> = faces
+    let mut samples: Vec<(SampleKey, C)> = faces
         .par_chunks(CHUNK)
-        .flat_map_iter(|chunk| {
+        .enumerate()
+        .flat_map_iter(|(c, chunk)| {
             let mut out = Vec::new();
-            for face in chunk {
-                if let Some(tri) = fetch_triangle(positions, face) {
-                    rasterize(tri, &g, &mut out);
+            for (i, face) in chunk.iter().enumerate() {
+                if let Some((tri, first)) = fetch_triangle(positions, face) {
+                    rasterize(tri, &g, |key, w| {
+                        out.push((key, payload(c * CHUNK + i, unrotate(w, first))));
+                    });
                 }
             }
             out
@@ -136,7 +197,41 @@ pub fn sample_grid(positions: &[[f64; 3]], faces: &[[u32; 3]], grid: &SamplingGr
         .collect();
     samples.par_sort_unstable();
     samples.dedup();
-    merge_positions(&samples)
+    samples
+}
+
+/// Barycentric weights of a face's corners in their original order, from the weights of the
+/// corners of the triangle [`fetch_triangle`] rotated left by `first`.
+fn unrotate(w: [f32; 3], first: usize) -> [f64; 3] {
+    let mut out = [0.0; 3];
+    for (i, &x) in w.iter().enumerate() {
+        out[(i + first) % 3] = f64::from(x);
+    }
+    out
+}
+
+/// Texture coordinate at barycentric `weights` of face `face` of `mesh`; NaN when the face has
+/// no valid UV triangle (which [`Texture::sample`] reads as texel (0, 0)).
+fn uv_at(mesh: &UvMesh, face: usize, weights: [f64; 3]) -> [f64; 2] {
+    let corners = mesh.uv_faces.get(face).and_then(|t| {
+        let [a, b, c] = t.map(|i| mesh.uv.get(i as usize));
+        Some([*a?, *b?, *c?])
+    });
+    let Some(uv) = corners else { return [f64::NAN; 2] };
+    std::array::from_fn(|k| weights[0] * uv[0][k] + weights[1] * uv[1][k] + weights[2] * uv[2][k])
+}
+
+/// Runs of sorted samples sharing one position: one run per point of the merged cloud.
+fn position_runs<C>(samples: &[(SampleKey, C)]) -> impl Iterator<Item = &[(SampleKey, C)]> {
+    samples.chunk_by(|a, b| a.0[..3] == b.0[..3])
+}
+
+/// YCbCr of the mean RGB (stored as `f64` bits) of one run of samples.
+fn mean_colour(run: &[(SampleKey, [u64; 3])]) -> [f64; 3] {
+    let sum = run
+        .iter()
+        .fold([0.0f64; 3], |s, (_, c)| std::array::from_fn(|k| s[k] + f64::from_bits(c[k])));
+    ycbcr709(sum.map(|v| v / run.len() as f64))
 }
 
 /// Grid origin and step in the single precision mmetric computes with.
@@ -154,20 +249,21 @@ impl GridF32 {
     }
 }
 
-/// The triangle's corners in `f32`, rotated so that the lexicographically smallest comes first
-/// (orientation kept), or `None` if an index is out of range.
-fn fetch_triangle(positions: &[[f64; 3]], face: &[u32; 3]) -> Option<[[f32; 3]; 3]> {
+/// The triangle's corners in `f32`, rotated left so that the lexicographically smallest comes
+/// first (orientation kept), and the rotation; `None` if an index is out of range.
+fn fetch_triangle(positions: &[[f64; 3]], face: &[u32; 3]) -> Option<([[f32; 3]; 3], usize)> {
     let mut tri = [[0.0f32; 3]; 3];
     for (corner, &v) in tri.iter_mut().zip(face) {
         *corner = positions.get(v as usize)?.map(|c| c as f32);
     }
     let first = (1..3).fold(0, |m, i| if cmp_f32s(&tri[i], &tri[m]).is_lt() { i } else { m });
     tri.rotate_left(first);
-    Some(tri)
+    Some((tri, first))
 }
 
-/// Appends the grid samples of one triangle to `out`.
-fn rasterize(tri: [[f32; 3]; 3], g: &GridF32, out: &mut Vec<SampleKey>) {
+/// Calls `hit(sample, weights)` for each grid sample of one triangle: the sample's position and
+/// face normal as a key, and the barycentric weights of `tri`'s corners at it.
+fn rasterize(tri: [[f32; 3]; 3], g: &GridF32, mut hit: impl FnMut(SampleKey, [f32; 3])) {
     let Some(nrm) = face_normal(tri) else { return };
     let [nx, ny, nz] = nrm.map(order_key);
     let (main, second, third) = ray_axes(nrm);
@@ -181,9 +277,9 @@ fn rasterize(tri: [[f32; 3]; 3], g: &GridF32, out: &mut Vec<SampleKey>) {
         origin[second] = g.origin[second] + (lo[second] + i as f32) * g.step;
         for j in 0..line_count(lo[third], hi[third]) {
             origin[third] = g.origin[third] + (lo[third] + j as f32) * g.step;
-            if let Some(t) = ray_hit(origin, dir, tri) {
+            if let Some([t, u, v]) = ray_hit(origin, dir, tri) {
                 let [x, y, z] = std::array::from_fn(|k| order_key(origin[k] + dir[k] * t));
-                out.push([x, y, z, nx, ny, nz]);
+                hit([x, y, z, nx, ny, nz], [1.0 - u - v, u, v]);
             }
         }
     }
@@ -224,8 +320,8 @@ fn line_count(lo: f32, hi: f32) -> u64 {
 }
 
 /// Moller-Trumbore in `f32` with mmetric's tolerance and inclusive bounds: the ray parameter
-/// of the hit, or `None`.
-fn ray_hit(origin: [f32; 3], dir: [f32; 3], [v0, v1, v2]: [[f32; 3]; 3]) -> Option<f32> {
+/// of the hit and the barycentric weights `(u, v)` of `v1` and `v2` there, or `None`.
+fn ray_hit(origin: [f32; 3], dir: [f32; 3], [v0, v1, v2]: [[f32; 3]; 3]) -> Option<[f32; 3]> {
     let edge1 = sub32(v1, v0);
     let edge2 = sub32(v2, v0);
     let pvec = cross32(dir, edge2);
@@ -244,17 +340,21 @@ fn ray_hit(origin: [f32; 3], dir: [f32; 3], [v0, v1, v2]: [[f32; 3]; 3]) -> Opti
     if v < 0.0 || u + v > 1.0 {
         return None;
     }
-    Some(dot32(edge2, qvec) * inv_det)
+    Some([dot32(edge2, qvec) * inv_det, u, v])
 }
 
 /// Collapses runs of equal positions in sorted samples into one point carrying the mean of
-/// their normals (in `f32`, as pc_error averages them).
-fn merge_positions(samples: &[SampleKey]) -> PointCloud {
+/// the normals of its distinct (position, normal) samples (in `f32`, as pc_error averages them).
+fn merge_positions<C>(samples: &[(SampleKey, C)]) -> PointCloud {
     let mut cloud = PointCloud::default();
-    for run in samples.chunk_by(|a, b| a[..3] == b[..3]) {
-        let count = run.len() as f32;
-        let sum = run.iter().fold([0.0f32; 3], |s, k| add32(s, [k[3], k[4], k[5]].map(key_value)));
-        cloud.points.push([run[0][0], run[0][1], run[0][2]].map(|k| f64::from(key_value(k))));
+    for run in position_runs(samples) {
+        let (count, sum) =
+            run.chunk_by(|a, b| a.0 == b.0).fold((0.0f32, [0.0f32; 3]), |(n, s), same| {
+                let k = same[0].0;
+                (n + 1.0, add32(s, [k[3], k[4], k[5]].map(key_value)))
+            });
+        let k = run[0].0;
+        cloud.points.push([k[0], k[1], k[2]].map(|v| f64::from(key_value(v))));
         cloud.normals.push(sum.map(|v| f64::from(v / count)));
     }
     cloud
@@ -290,50 +390,78 @@ type Tree = kiddo::ImmutableKdTree<f64, 3>;
 
 /// Mean errors from the points of `a` to their nearest points of `b`, with `b`'s normals.
 fn one_way(a: &PointCloud, b: &PointCloud) -> Distortion {
+    let [d1_mse, d2_mse] = one_way_terms(a, b, |tree, q| {
+        let (e1, e2) = point_errors(tree, b, a.points[q]);
+        [e1, e2]
+    });
+    Distortion { d1_mse, d2_mse }
+}
+
+/// Mean over the points `q` of `a` of `term(tree of b, q)`: zero if `a` is empty, infinite if
+/// only `b` is.
+fn one_way_terms<const N: usize>(
+    a: &PointCloud,
+    b: &PointCloud,
+    term: impl Fn(&Tree, usize) -> [f64; N] + Sync,
+) -> [f64; N] {
     if a.points.is_empty() {
-        return Distortion { d1_mse: 0.0, d2_mse: 0.0 };
+        return [0.0; N];
     }
     if b.points.is_empty() {
-        return Distortion { d1_mse: f64::INFINITY, d2_mse: f64::INFINITY };
+        return [f64::INFINITY; N];
     }
     let tree = Tree::new_from_slice(&b.points);
-    let partial: Vec<(f64, f64)> = a
-        .points
-        .par_chunks(CHUNK)
-        .map(|chunk| {
-            chunk.iter().fold((0.0, 0.0), |(s1, s2), q| {
-                let (e1, e2) = point_errors(&tree, b, *q);
-                (s1 + e1, s2 + e2)
-            })
-        })
+    mean_terms(a.points.len(), |q| term(&tree, q))
+}
+
+/// Mean of `term(i)` over `i` in `0..count`, summed per channel chunk by chunk and then chunk
+/// after chunk, so the result does not depend on how rayon schedules the chunks.
+fn mean_terms<const N: usize>(count: usize, term: impl Fn(usize) -> [f64; N] + Sync) -> [f64; N] {
+    let starts: Vec<usize> = (0..count).step_by(CHUNK).collect();
+    let partial: Vec<[f64; N]> = starts
+        .par_iter()
+        .map(|&start| (start..count.min(start + CHUNK)).fold([0.0; N], |s, i| add_n(s, term(i))))
         .collect();
-    let (s1, s2) = partial.iter().fold((0.0, 0.0), |(s1, s2), (e1, e2)| (s1 + e1, s2 + e2));
-    let n = a.points.len() as f64;
-    Distortion { d1_mse: s1 / n, d2_mse: s2 / n }
+    let sum = partial.into_iter().fold([0.0; N], add_n);
+    sum.map(|s| s / count as f64)
+}
+
+fn add_n<const N: usize>(a: [f64; N], b: [f64; N]) -> [f64; N] {
+    std::array::from_fn(|k| a[k] + b[k])
 }
 
 /// (D1, D2) terms of one query point `q` against the cloud `b` indexed by `tree`.
 fn point_errors(tree: &Tree, b: &PointCloud, q: [f64; 3]) -> (f64, f64) {
+    let mut d2 = 0.0;
+    let (d1, count) = visit_nearest(tree, q, |i| d2 += plane_error(b, q, i));
+    (d1, d2 / count.max(1) as f64)
+}
+
+/// Calls `visit(index)` for each point of pc_error's tie set of `q` in the cloud indexed by
+/// `tree`: the nearest points whose squared distances chain within [`SAME_DISTANCE`] of each
+/// other, at most [`MAX_NEIGHBOURS`], nearest first (equal distances by index). Returns the
+/// squared distance to the nearest point and the number of points visited.
+fn visit_nearest(tree: &Tree, q: [f64; 3], mut visit: impl FnMut(usize)) -> (f64, usize) {
     use kiddo::SquaredEuclidean;
     let nearest = tree.nearest_one::<SquaredEuclidean>(&q);
     let radius = nearest.distance + SAME_DISTANCE * MAX_NEIGHBOURS as f64;
     let mut ties = tree.within_unsorted::<SquaredEuclidean>(&q, radius);
     if ties.len() <= 1 {
-        return (nearest.distance, plane_error(b, q, nearest.item as usize));
+        visit(nearest.item as usize);
+        return (nearest.distance, 1);
     }
     ties.sort_unstable_by(|x, y| x.distance.total_cmp(&y.distance).then(x.item.cmp(&y.item)));
     let mut previous = nearest.distance;
     let mut count = 0usize;
-    let mut d2 = 0.0;
     for nb in ties.iter().take(MAX_NEIGHBOURS) {
         if nb.distance - previous >= SAME_DISTANCE {
             break;
         }
         previous = nb.distance;
-        d2 += plane_error(b, q, nb.item as usize);
+        visit(nb.item as usize);
         count += 1;
     }
-    (nearest.distance, d2 / count.max(1) as f64)
+    (nearest.distance, count)
 }
 
 /// Squared projection of `q - b.points[index]` on that point's normal (point-to-point error if
@@ -369,6 +497,124 @@ pub fn mesh_psnr(
     );
     let d = distortion(&reference, &decoded);
     (psnr(d.d1_mse, peak), psnr(d.d2_mse, peak))
+}
+
+/// A sampled cloud with one colour per point, as [`sample_grid_coloured`] returns it.
+pub type ColouredCloud<'a> = (&'a PointCloud, &'a [[f64; 3]]);
+
+/// Symmetric colour distortion between two coloured clouds, per channel (Y, Cb, Cr with
+/// [`sample_grid_coloured`]'s colours): for each point of one cloud, the squared difference
+/// between its colour and the mean colour of its nearest points in the other cloud (the same
+/// equidistant set [`distortion`] uses for D2, pc_error's `neighborsProc = 1`); the mean over the
+/// points; per channel the larger of the two directions. Both empty: zero; exactly one empty:
+/// infinite. Panics if a cloud does not have exactly one colour per point. Deterministic and
+/// independent of thread count.
+pub fn colour_mse(reference: ColouredCloud<'_>, decoded: ColouredCloud<'_>) -> [f64; 3] {
+    let [_, _, y, cb, cr] = textured_distortion_terms(reference, decoded);
+    [y, cb, cr]
+}
+
+/// Geometry and colour distortion of one comparison.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TexturedDistortion {
+    /// As [`distortion`] gives it.
+    pub geometry: Distortion,
+    /// Y, Cb, Cr as [`colour_mse`] gives them.
+    pub colour_mse: [f64; 3],
+}
+
+/// [`distortion`] and [`colour_mse`] of two coloured clouds in one pass of nearest-neighbour
+/// queries (identical results to calling both).
+pub fn textured_distortion(
+    reference: ColouredCloud<'_>,
+    decoded: ColouredCloud<'_>,
+) -> TexturedDistortion {
+    let [d1_mse, d2_mse, y, cb, cr] = textured_distortion_terms(reference, decoded);
+    TexturedDistortion { geometry: Distortion { d1_mse, d2_mse }, colour_mse: [y, cb, cr] }
+}
+
+/// Symmetric [D1, D2, Y, Cb, Cr] mean errors: per term the larger direction.
+fn textured_distortion_terms(a: ColouredCloud<'_>, b: ColouredCloud<'_>) -> [f64; 5] {
+    for (cloud, colours) in [a, b] {
+        assert_eq!(
+            cloud.points.len(),
+            colours.len(),
+            "a coloured cloud needs one colour per point"
+        );
+    }
+    let (ab, ba) = rayon::join(|| textured_one_way(a, b), || textured_one_way(b, a));
+    std::array::from_fn(|k| ab[k].max(ba[k]))
+}
+
+/// Mean [D1, D2, Y, Cb, Cr] errors from the points of `a` to their nearest points of `b`.
+fn textured_one_way((a, ac): ColouredCloud<'_>, (b, bc): ColouredCloud<'_>) -> [f64; 5] {
+    one_way_terms(a, b, |tree, i| {
+        let q = a.points[i];
+        let (mut d2, mut colour) = (0.0, [0.0; 3]);
+        let (d1, count) = visit_nearest(tree, q, |j| {
+            d2 += plane_error(b, q, j);
+            colour = add_n(colour, bc[j]);
+        });
+        let n = count.max(1) as f64;
+        let [y, cb, cr]: [f64; 3] = std::array::from_fn(|k| (ac[i][k] - colour[k] / n).powi(2));
+        [d1, d2 / n, y, cb, cr]
+    })
+}
+
+/// Colour PSNR in dB per channel with peak 1, as the test conditions measure YCbCr in [0, 1]:
+/// `10 log10(1 / mse)` (no factor 3, unlike the geometric [`psnr`]). `mse == 0` gives
+/// `f64::INFINITY`, an infinite `mse` negative infinity.
+pub fn colour_psnr(mse: [f64; 3]) -> [f64; 3] {
+    mse.map(|m| 10.0 * (1.0 / m).log10())
+}
+
+/// Geometry and colour distortion of the textured mesh `decoded` against `reference`, both
+/// sampled on `grid` with [`sample_grid_coloured`] (see [`mesh_psnr`] for the grid).
+pub fn textured_mse(
+    reference: &UvMesh,
+    ref_tex: &Texture,
+    decoded: &UvMesh,
+    dec_tex: &Texture,
+    grid: &SamplingGrid,
+) -> TexturedDistortion {
+    let ((rc, rcol), (dc, dcol)) = rayon::join(
+        || sample_grid_coloured(reference, ref_tex, grid),
+        || sample_grid_coloured(decoded, dec_tex, grid),
+    );
+    textured_distortion((&rc, &rcol), (&dc, &dcol))
+}
+
+/// PSNRs of one textured comparison, in dB (infinite for identical samples).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TexturedPsnr {
+    /// Geometry, as [`mesh_psnr`] gives them (peak as passed).
+    pub d1: f64,
+    pub d2: f64,
+    /// Colour channels, peak 1 ([`colour_psnr`]).
+    pub y: f64,
+    pub cb: f64,
+    pub cr: f64,
+}
+
+/// D1, D2 and Y, Cb, Cr PSNR of the textured mesh `decoded` against `reference`, sampled on
+/// [`SamplingGrid::over_box`]`(box_min, box_max, grid_size)` (normally the reference box and
+/// 1024) with geometry peak `peak` (the largest side of the source sequence's box): the figures
+/// of the common test conditions, mirroring [`mesh_psnr`].
+#[allow(clippy::too_many_arguments)]
+pub fn textured_psnr(
+    reference: &UvMesh,
+    ref_tex: &Texture,
+    decoded: &UvMesh,
+    dec_tex: &Texture,
+    box_min: [f64; 3],
+    box_max: [f64; 3],
+    peak: f64,
+    grid_size: u32,
+) -> TexturedPsnr {
+    let grid = SamplingGrid::over_box(box_min, box_max, grid_size);
+    let d = textured_mse(reference, ref_tex, decoded, dec_tex, &grid);
+    let [y, cb, cr] = colour_psnr(d.colour_mse);
+    TexturedPsnr { d1: psnr(d.geometry.d1_mse, peak), d2: psnr(d.geometry.d2_mse, peak), y, cb, cr }
 }
 
 // ---- small f32 vector helpers (mmetric samples in single precision) ----
@@ -578,6 +824,174 @@ mod tests {
         assert_eq!(one_way(&one, &pile), Distortion { d1_mse: 9.0, d2_mse: 4.0 });
         assert_eq!(psnr(0.0, 1.0), f64::INFINITY);
         assert!((psnr(3.0, 1.0) - 0.0).abs() < 1e-12);
+    }
+
+    // ---- colour ----
+
+    use crate::mesh::Mesh as IndexedMesh;
+
+    /// The unit square of [`square`] with its own UV list, UV = (x, y), stored in another order
+    /// than the positions so that per-corner UV indexing matters.
+    fn textured_square(z: f64) -> UvMesh {
+        let (p, f) = square(z);
+        let uv = vec![[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]];
+        UvMesh { mesh: IndexedMesh::new(p, f), uv, uv_faces: vec![[3, 2, 0], [2, 1, 0]] }
+    }
+
+    /// 256 x 2 texture: red = column, green 0 on the top row and 200 on the bottom row, blue 50.
+    fn gradient_texture() -> Texture {
+        let rgb =
+            (0..2).flat_map(|y| (0..256).map(move |x| [x as u8, if y == 0 { 0 } else { 200 }, 50]));
+        Texture { width: 256, height: 2, rgb: rgb.collect() }
+    }
+
+    fn textured_height_field(n: u32, phase: f64) -> UvMesh {
+        let (p, f) = height_field(n, phase);
+        let uv = p.iter().map(|q| [q[0], q[1]]).collect();
+        UvMesh { mesh: IndexedMesh::new(p, f.clone()), uv, uv_faces: f }
+    }
+
+    fn close3(a: [f64; 3], b: [f64; 3], tol: f64) -> bool {
+        a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol)
+    }
+
+    #[test]
+    fn coloured_sampling_keeps_the_geometric_points() {
+        let m = textured_height_field(40, 0.2);
+        let grid = SamplingGrid::over_box([0.0, 0.0, -0.1], [1.0, 1.0, 0.1], 128);
+        let (cloud, colours) = sample_grid_coloured(&m, &gradient_texture(), &grid);
+        assert_eq!(cloud, sample_grid(&m.mesh.positions, &m.mesh.faces, &grid));
+        assert_eq!(colours.len(), cloud.points.len());
+    }
+
+    #[test]
+    fn gradient_colours_land_where_expected() {
+        let m = textured_square(0.0);
+        let (cloud, colours) = sample_grid_coloured(&m, &gradient_texture(), &square_grid());
+        assert_eq!(cloud.points.len(), 100);
+        for (q, c) in cloud.points.iter().zip(&colours) {
+            // Texel centres at u = (x + 0.5) / 256 hold red = x; rows at v = 0.75 (top, green 0)
+            // and v = 0.25 (bottom, green 200); clamped beyond the outer centres.
+            let red = (q[0] * 256.0 - 0.5).clamp(0.0, 255.0);
+            let green = 200.0 * ((1.0 - q[1]) * 2.0 - 0.5).clamp(0.0, 1.0);
+            let expected = ycbcr709([red, green, 50.0]);
+            assert!(close3(*c, expected, 1e-6), "at {q:?}: {c:?} vs {expected:?}");
+        }
+    }
+
+    #[test]
+    fn merged_seam_points_average_their_colours() {
+        // Two triangles meeting along x = 1/2 whose UVs point into a red and a blue half of the
+        // texture: grid points on the shared edge get one sample of each colour.
+        let p = vec![[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.5, 1.0, 0.0], [1.0, 0.0, 0.0]];
+        let mesh = IndexedMesh::new(p, vec![[0, 1, 2], [1, 3, 2]]);
+        let uv = vec![[0.1, 0.5], [0.2, 0.5], [0.9, 0.5]];
+        let m = UvMesh { mesh, uv, uv_faces: vec![[0, 1, 0], [2, 2, 2]] };
+        let mut t = Texture::filled(2, 1, [255, 0, 0]);
+        t.rgb[1] = [0, 0, 255];
+        let grid = SamplingGrid::over_box([0.0; 3], [1.0, 1.0, 0.0], 9); // step 1/8 exactly
+        let (cloud, colours) = sample_grid_coloured(&m, &t, &grid);
+        let (red, blue) = (ycbcr709([255.0, 0.0, 0.0]), ycbcr709([0.0, 0.0, 255.0]));
+        let purple = ycbcr709([127.5, 0.0, 127.5]);
+        let mut seam = 0;
+        for (q, c) in cloud.points.iter().zip(&colours) {
+            let expected = if q[0] < 0.5 {
+                red
+            } else if q[0] > 0.5 {
+                blue
+            } else {
+                purple
+            };
+            seam += usize::from(q[0] == 0.5);
+            assert!(close3(*c, expected, 1e-12), "at {q:?}: {c:?} vs {expected:?}");
+        }
+        assert!(seam >= 5, "{seam} seam points");
+    }
+
+    #[test]
+    fn identical_textured_meshes_have_infinite_psnr() {
+        let m = textured_height_field(20, 0.0);
+        let t = gradient_texture();
+        let grid = SamplingGrid::over_box([0.0, 0.0, -0.1], [1.0, 1.0, 0.1], 64);
+        let (cloud, colours) = sample_grid_coloured(&m, &t, &grid);
+        assert_eq!(colour_mse((&cloud, &colours), (&cloud, &colours)), [0.0; 3]);
+        assert_eq!(colour_psnr([0.0; 3]), [f64::INFINITY; 3]);
+        let p = textured_psnr(&m, &t, &m, &t, [0.0, 0.0, -0.1], [1.0, 1.0, 0.1], 1.0, 64);
+        let inf = f64::INFINITY;
+        assert_eq!(p, TexturedPsnr { d1: inf, d2: inf, y: inf, cb: inf, cr: inf });
+    }
+
+    #[test]
+    fn constant_offset_in_one_channel_gives_its_ycbcr_square() {
+        let m = textured_height_field(20, 0.0);
+        let reference = gradient_texture();
+        let k = 7u8;
+        let mut decoded = reference.clone();
+        decoded.rgb.iter_mut().for_each(|c| c[2] += k); // blue 50 -> 57, no clipping
+        let grid = SamplingGrid::over_box([0.0, 0.0, -0.1], [1.0, 1.0, 0.1], 64);
+        let d = textured_mse(&m, &reference, &m, &decoded, &grid);
+        assert_eq!(d.geometry, Distortion { d1_mse: 0.0, d2_mse: 0.0 });
+        let (zero, offset) = (ycbcr709([0.0; 3]), ycbcr709([0.0, 0.0, k as f64]));
+        let expected: [f64; 3] = std::array::from_fn(|c| (offset[c] - zero[c]).powi(2));
+        for c in 0..3 {
+            assert!(
+                (d.colour_mse[c] - expected[c]).abs() <= 1e-12 * expected[c],
+                "{d:?} vs {expected:?}"
+            );
+        }
+        let p =
+            textured_psnr(&m, &reference, &m, &decoded, [0.0, 0.0, -0.1], [1.0, 1.0, 0.1], 1.0, 64);
+        let want = colour_psnr(expected);
+        assert!(close3([p.y, p.cb, p.cr], want, 1e-9), "{p:?} vs {want:?}");
+        assert!((want[0] - 10.0 * (1.0 / (0.0722 * 7.0 / 255.0f64).powi(2)).log10()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn colour_figures_are_symmetric_and_thread_independent() {
+        let a = textured_height_field(30, 0.0);
+        let mut b = textured_height_field(24, 0.4);
+        b.uv.iter_mut().for_each(|uv| uv[0] = 0.9 * uv[0] + 0.05);
+        let (ta, mut tb) = (gradient_texture(), gradient_texture());
+        tb.rgb.iter_mut().for_each(|c| c[1] = c[1].saturating_add(30));
+        let (lo, hi) = ([0.0, 0.0, -0.1], [1.0, 1.0, 0.1]);
+        let ab = textured_psnr(&a, &ta, &b, &tb, lo, hi, 1.0, 100);
+        let ba = textured_psnr(&b, &tb, &a, &ta, lo, hi, 1.0, 100);
+        assert_eq!(ab, ba);
+        assert!(ab.y.is_finite() && ab.cb.is_finite() && ab.cr.is_finite() && ab.d1.is_finite());
+        // Geometry figures are those of mesh_psnr, and the clouds' colour_mse matches.
+        let grid = SamplingGrid::over_box(lo, hi, 100);
+        let (pa, fa, pb, fb) = (&a.mesh.positions, &a.mesh.faces, &b.mesh.positions, &b.mesh.faces);
+        assert_eq!((ab.d1, ab.d2), mesh_psnr(pa, fa, pb, fb, &grid, 1.0));
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().expect("pool");
+            pool.install(|| {
+                let (ca, cola) = sample_grid_coloured(&a, &ta, &grid);
+                let (cb, colb) = sample_grid_coloured(&b, &tb, &grid);
+                colour_mse((&ca, &cola), (&cb, &colb))
+            })
+        };
+        let one = run(1);
+        assert_eq!(one.map(f64::to_bits), run(3).map(f64::to_bits));
+        assert_eq!([ab.y, ab.cb, ab.cr], colour_psnr(one));
+    }
+
+    #[test]
+    fn colour_edge_cases_do_not_panic() {
+        let empty = PointCloud::default();
+        let one = PointCloud { points: vec![[0.0; 3]], normals: vec![[0.0, 0.0, 1.0]] };
+        let grey = [[0.5; 3]];
+        assert_eq!(colour_mse((&empty, &[]), (&empty, &[])), [0.0; 3]);
+        assert_eq!(colour_mse((&one, &grey), (&empty, &[])), [f64::INFINITY; 3]);
+        assert_eq!(colour_psnr([f64::INFINITY; 3]), [f64::NEG_INFINITY; 3]);
+        // A face without UVs reads texel (0, 0) (top left).
+        let mut m = textured_square(0.0);
+        m.uv_faces.pop();
+        let (cloud, colours) = sample_grid_coloured(&m, &gradient_texture(), &square_grid());
+        assert_eq!(cloud.points.len(), 100);
+        let top_left = ycbcr709([0.0, 0.0, 50.0]);
+        let upper: Vec<_> =
+            (0..100).filter(|&i| cloud.points[i][0] + cloud.points[i][1] > 1.01).collect();
+        assert!(!upper.is_empty() && upper.iter().all(|&i| colours[i] == top_left));
     }
 
     /// Minimal OBJ reader: `v x y z` and triangular `f a b c` (1-based, `a/..` forms allowed).

@@ -4,6 +4,11 @@
 //! appended after all vertices of coarser levels, so a level of detail is a contiguous index
 //! range, and each new vertex records its parent edge: the lifting transform and the
 //! displacement coder rely on both.
+//!
+//! A textured mesh's UV triangles are split the same way ([`subdivide_uv`]), face for face
+//! and corner for corner, so that the subdivided mesh keeps its atlas. UVs are always
+//! interpolated linearly: a texture is mapped piecewise linearly whatever smoothing the
+//! positions get.
 
 use crate::mesh::{edge_key, EdgeMap};
 
@@ -77,10 +82,7 @@ fn split_once(s: &mut Subdivision, scheme: Scheme) {
             }
             v
         });
-        new_faces.push([f[0], mids[0], mids[2]]);
-        new_faces.push([mids[0], f[1], mids[1]]);
-        new_faces.push([mids[2], mids[1], f[2]]);
-        new_faces.push([mids[0], mids[1], mids[2]]);
+        new_faces.extend(split_face(f, mids));
     }
     let first_parent = s.parents.len() - opposite.len();
     let odd: Vec<[f64; 3]> = (0..opposite.len())
@@ -92,6 +94,42 @@ fn split_once(s: &mut Subdivision, scheme: Scheme) {
     s.positions.extend(odd);
     s.faces = new_faces;
     s.lod_offsets.push(s.positions.len());
+}
+
+/// The four children of triangle `f` whose edge `f[k] -> f[k + 1]` is split by `mids[k]`:
+/// the three corner triangles, then the middle one, each keeping `f`'s orientation. Every
+/// split (positions and UVs) goes through here, so that face `i` of one subdivision matches
+/// face `i` of another.
+fn split_face(f: &[u32; 3], mids: [u32; 3]) -> [[u32; 3]; 4] {
+    [[f[0], mids[0], mids[2]], [mids[0], f[1], mids[1]], [mids[2], mids[1], f[2]], [mids[0], mids[1], mids[2]]]
+}
+
+/// Subdivides a mesh's UV triangles `iterations` times as [`subdivide`] does its faces:
+/// `uv_faces[f]` gives the UVs of the corners of face `f` (indices into `uv`), and the
+/// result's face `i` gives the UVs of the corners of `subdivide(..).faces[i]` for the same
+/// iterations, whatever the scheme. New UVs are edge midpoints, appended level by level;
+/// edges are keyed by UV indices, so a seam (a position edge with different UVs on its two
+/// sides) stays a seam. Panics if an index is beyond `uv`.
+pub fn subdivide_uv(uv: &[[f64; 2]], uv_faces: &[[u32; 3]], iterations: u32) -> (Vec<[f64; 2]>, Vec<[u32; 3]>) {
+    let mut uv = uv.to_vec();
+    let mut faces = uv_faces.to_vec();
+    for _ in 0..iterations {
+        let mut edge_uv: EdgeMap<u32> = EdgeMap::with_capacity_and_hasher(faces.len() * 3 / 2, Default::default());
+        let mut new_faces = Vec::with_capacity(faces.len() * 4);
+        for f in &faces {
+            let mids: [u32; 3] = std::array::from_fn(|k| {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                *edge_uv.entry(edge_key(a, b)).or_insert_with(|| {
+                    let (pa, pb) = (uv[a as usize], uv[b as usize]);
+                    uv.push([0.5 * (pa[0] + pb[0]), 0.5 * (pa[1] + pb[1])]);
+                    (uv.len() - 1) as u32
+                })
+            });
+            new_faces.extend(split_face(f, mids));
+        }
+        faces = new_faces;
+    }
+    (uv, faces)
 }
 
 /// Position of the vertex that splits `edge`; `opp = [c, d, face count]`.
@@ -211,6 +249,68 @@ mod tests {
         let tet = vec![[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]];
         let s = subdivide(&closed, &tet, 1, Scheme::Loop);
         assert_ne!(s.positions[0], closed[0]);
+    }
+
+    /// Positions, faces, UVs, UV faces.
+    type TexturedMesh = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<[f64; 2]>, Vec<[u32; 3]>);
+
+    /// Two triangles sharing the position edge 1-2, with different UVs on either side of it
+    /// (a seam); on each side the UV is an affine function of the position.
+    fn seamed_pair() -> TexturedMesh {
+        let p = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 1.0, 0.0]];
+        let f = vec![[0, 1, 2], [1, 3, 2]];
+        let uv = [[0.1, 0.2], [0.3, 0.2], [0.1, 0.4], [0.9, 0.1], [0.7, 0.3], [0.7, 0.1]];
+        (p, f, uv.to_vec(), vec![[0, 1, 2], [3, 4, 5]])
+    }
+
+    /// The UV map of [`seamed_pair`]: face 0's side, face 1's side.
+    fn chart(p: [f64; 3], side: usize) -> [f64; 2] {
+        match side {
+            0 => [0.1 + 0.2 * p[0], 0.2 + 0.2 * p[1]],
+            _ => [0.9 - 0.2 * p[1], 0.1 + 0.2 * (p[0] + p[1] - 1.0)],
+        }
+    }
+
+    #[test]
+    fn uv_subdivision_follows_the_faces_and_keeps_the_seam() {
+        let (p, f, uv, uv_faces) = seamed_pair();
+        for (i, t) in f.iter().enumerate() {
+            for k in 0..3 {
+                let expect = chart(p[t[k] as usize], i);
+                let got = uv[uv_faces[i][k] as usize];
+                assert!((0..2).all(|a| (got[a] - expect[a]).abs() < 1e-12), "base face {i} corner {k}");
+            }
+        }
+        for scheme in [Scheme::Midpoint, Scheme::Loop] {
+            let s = subdivide(&p, &f, 2, scheme);
+            let (suv, suv_faces) = subdivide_uv(&uv, &uv_faces, 2);
+            assert_eq!(suv_faces.len(), s.faces.len());
+            if scheme == Scheme::Loop {
+                continue; // Loop moves the positions; the UVs stay piecewise linear.
+            }
+            // 32 faces: the first 16 come from face 0, the rest from face 1.
+            for (i, (t, ut)) in s.faces.iter().zip(&suv_faces).enumerate() {
+                for k in 0..3 {
+                    let expect = chart(s.positions[t[k] as usize], i / 16);
+                    let got = suv[ut[k] as usize];
+                    assert!((0..2).all(|a| (got[a] - expect[a]).abs() < 1e-12), "face {i} corner {k}: {got:?} vs {expect:?}");
+                }
+            }
+            // Every vertex on the seam 1-2 (x + y = 1) has one UV on each side, the others one.
+            let mut uvs_of = vec![std::collections::BTreeSet::new(); s.positions.len()];
+            for (t, ut) in s.faces.iter().zip(&suv_faces) {
+                for k in 0..3 {
+                    uvs_of[t[k] as usize].insert(ut[k]);
+                }
+            }
+            for (v, set) in uvs_of.iter().enumerate() {
+                let q = s.positions[v];
+                let on_seam = (q[0] + q[1] - 1.0).abs() < 1e-12;
+                assert_eq!(set.len(), if on_seam { 2 } else { 1 }, "vertex {v} at {q:?}");
+            }
+            // Two subdivisions of an edge per side: 5 seam vertices, 25 + 5 UVs.
+            assert_eq!(suv.len(), s.positions.len() + 5);
+        }
     }
 
     #[test]

@@ -1,0 +1,244 @@
+//! Python bindings of the texture-aware measurements: colour PSNR of textured meshes as the
+//! common test conditions measure it, and snapshot rendering of (decoded) frames.
+//!
+//! Arrays are checked here (shapes, index ranges, finite values) so that the core's contracts
+//! hold and a mistake surfaces as a ValueError naming the problem, never as a panic. The core
+//! work runs with the GIL released.
+
+use numpy::ndarray::Array3;
+use numpy::{IntoPyArray, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use dynmesh::mesh::Mesh;
+use dynmesh::metrics::{self, SamplingGrid};
+use dynmesh::render::View;
+use dynmesh::texture::{Texture, UvMesh};
+
+use crate::{faces_of, positions_of};
+
+/// Largest image side `render` accepts (keeps a typo from allocating gigabytes).
+const MAX_IMAGE_SIDE: usize = 16384;
+
+/// Adds the colour functions to the module.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(textured_distortion, m)?)?;
+    m.add_function(wrap_pyfunction!(render, m)?)?;
+    Ok(())
+}
+
+/// Geometry and texture distortion of a decoded textured mesh against the reference, as the
+/// common test conditions measure it: both meshes sampled on the grid over `[box_min, box_max]`
+/// (normally the reference box) with `grid_size` lines, colours read bilinearly from each mesh's
+/// texture at the samples' UVs, in BT.709 YCbCr [0, 1].
+///
+/// Each mesh is positions (N, 3) float64, faces (M, 3) int64, uv (K, 2) float64 (v up, as in
+/// OBJ), uv_faces (M, 3) int64 indexing uv per face corner, texture (H, W, 3) uint8 with rows
+/// from the top. Returns a dict: d1_psnr, d2_psnr (peak `peak`, the largest side of the
+/// sequence's box), y_psnr, cb_psnr, cr_psnr (peak 1; inf when identical) and the matching
+/// d1_mse, d2_mse, y_mse, cb_mse, cr_mse.
+#[pyfunction]
+#[pyo3(signature = (
+    ref_positions, ref_faces, ref_uv, ref_uv_faces, ref_texture,
+    dec_positions, dec_faces, dec_uv, dec_uv_faces, dec_texture,
+    box_min, box_max, peak, grid_size=1024
+))]
+#[allow(clippy::too_many_arguments)]
+fn textured_distortion<'py>(
+    py: Python<'py>,
+    ref_positions: PyReadonlyArray2<'py, f64>,
+    ref_faces: PyReadonlyArray2<'py, i64>,
+    ref_uv: PyReadonlyArray2<'py, f64>,
+    ref_uv_faces: PyReadonlyArray2<'py, i64>,
+    ref_texture: PyReadonlyArray3<'py, u8>,
+    dec_positions: PyReadonlyArray2<'py, f64>,
+    dec_faces: PyReadonlyArray2<'py, i64>,
+    dec_uv: PyReadonlyArray2<'py, f64>,
+    dec_uv_faces: PyReadonlyArray2<'py, i64>,
+    dec_texture: PyReadonlyArray3<'py, u8>,
+    box_min: [f64; 3],
+    box_max: [f64; 3],
+    peak: f64,
+    grid_size: u32,
+) -> PyResult<Bound<'py, PyDict>> {
+    let named = |what: &'static str| {
+        move |e: PyErr| PyValueError::new_err(format!("{what}: {}", e.value(py)))
+    };
+    let reference = valid_uv_mesh(&ref_positions, &ref_faces, &ref_uv, &ref_uv_faces)
+        .map_err(named("reference"))?;
+    let decoded = valid_uv_mesh(&dec_positions, &dec_faces, &dec_uv, &dec_uv_faces)
+        .map_err(named("decoded"))?;
+    let ref_tex = texture_of(&ref_texture).map_err(named("reference texture"))?;
+    let dec_tex = texture_of(&dec_texture).map_err(named("decoded texture"))?;
+    let grid = grid_of(box_min, box_max, grid_size)?;
+    if !(peak.is_finite() && peak > 0.0) {
+        return Err(PyValueError::new_err(format!(
+            "peak must be a positive finite number, not {peak}"
+        )));
+    }
+    let d =
+        py.allow_threads(|| metrics::textured_mse(&reference, &ref_tex, &decoded, &dec_tex, &grid));
+    let [y, cb, cr] = d.colour_mse;
+    let [y_psnr, cb_psnr, cr_psnr] = metrics::colour_psnr(d.colour_mse);
+    let out = PyDict::new(py);
+    out.set_item("d1_psnr", metrics::psnr(d.geometry.d1_mse, peak))?;
+    out.set_item("d2_psnr", metrics::psnr(d.geometry.d2_mse, peak))?;
+    out.set_item("y_psnr", y_psnr)?;
+    out.set_item("cb_psnr", cb_psnr)?;
+    out.set_item("cr_psnr", cr_psnr)?;
+    out.set_item("d1_mse", d.geometry.d1_mse)?;
+    out.set_item("d2_mse", d.geometry.d2_mse)?;
+    out.set_item("y_mse", y)?;
+    out.set_item("cb_mse", cb)?;
+    out.set_item("cr_mse", cr)?;
+    Ok(out)
+}
+
+/// Renders a mesh into a (height, width, 3) uint8 image: orthographic view from `azimuth`
+/// degrees about +y (0 looks along -z at the front, 90 from the +x side) and `elevation`
+/// degrees above, the mesh framed to fit with a 5% margin; texture read bilinearly at the
+/// interpolated UVs (light grey where there is none), Lambert shading from the camera, white
+/// background.
+///
+/// positions (N, 3) float64 and faces (M, 3) int64; uv (K, 2) float64 and uv_faces (M, 3) int64
+/// together, or both None; texture (H, W, 3) uint8 rows from the top, or None. An empty faces
+/// array gives a white image.
+#[pyfunction]
+#[pyo3(signature = (positions, faces, uv, uv_faces, texture, width, height, azimuth=0.0, elevation=0.0))]
+#[allow(clippy::too_many_arguments)]
+fn render<'py>(
+    py: Python<'py>,
+    positions: PyReadonlyArray2<'py, f64>,
+    faces: PyReadonlyArray2<'py, i64>,
+    uv: Option<PyReadonlyArray2<'py, f64>>,
+    uv_faces: Option<PyReadonlyArray2<'py, i64>>,
+    texture: Option<PyReadonlyArray3<'py, u8>>,
+    width: usize,
+    height: usize,
+    azimuth: f64,
+    elevation: f64,
+) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    for (name, side) in [("width", width), ("height", height)] {
+        if !(1..=MAX_IMAGE_SIDE).contains(&side) {
+            return Err(PyValueError::new_err(format!(
+                "{name} must be in 1..={MAX_IMAGE_SIDE}, not {side}"
+            )));
+        }
+    }
+    if !(azimuth.is_finite() && elevation.is_finite()) {
+        return Err(PyValueError::new_err("azimuth and elevation must be finite"));
+    }
+    let mesh = match (&uv, &uv_faces) {
+        (Some(uv), Some(uv_faces)) => uv_mesh_of(&positions, &faces, uv, uv_faces)?,
+        (None, None) => {
+            let p = positions_of(&positions)?;
+            let f = faces_of(&faces, p.len())?;
+            UvMesh { mesh: Mesh::new(p, f), ..UvMesh::default() }
+        }
+        _ => return Err(PyValueError::new_err("give both uv and uv_faces, or neither")),
+    };
+    if !mesh.mesh.faces.is_empty() {
+        let check = if mesh.uv_faces.is_empty() {
+            mesh.mesh.validate().map_err(|e| e.0)
+        } else {
+            mesh.validate()
+        };
+        check.map_err(PyValueError::new_err)?;
+    }
+    let texture = texture.as_ref().map(texture_of).transpose()?;
+    let view = View { azimuth_deg: azimuth, elevation_deg: elevation };
+    let image =
+        py.allow_threads(|| dynmesh::render::render(&mesh, texture.as_ref(), width, height, view));
+    let flat = image.rgb.into_iter().flatten().collect();
+    Ok(Array3::from_shape_vec((height, width, 3), flat).expect("shape").into_pyarray(py))
+}
+
+/// A textured mesh from arrays, checked as [`UvMesh::validate`] checks it.
+pub(crate) fn valid_uv_mesh(
+    positions: &PyReadonlyArray2<f64>,
+    faces: &PyReadonlyArray2<i64>,
+    uv: &PyReadonlyArray2<f64>,
+    uv_faces: &PyReadonlyArray2<i64>,
+) -> PyResult<UvMesh> {
+    let mesh = uv_mesh_of(positions, faces, uv, uv_faces)?;
+    mesh.validate().map_err(PyValueError::new_err)?;
+    Ok(mesh)
+}
+
+/// A textured mesh from arrays whose shapes and index ranges are checked (not its values).
+fn uv_mesh_of(
+    positions: &PyReadonlyArray2<f64>,
+    faces: &PyReadonlyArray2<i64>,
+    uv: &PyReadonlyArray2<f64>,
+    uv_faces: &PyReadonlyArray2<i64>,
+) -> PyResult<UvMesh> {
+    let p = positions_of(positions)?;
+    let f = faces_of(faces, p.len())?;
+    let uv = uv_of(uv)?;
+    let uv_faces = uv_faces_of(uv_faces, f.len(), uv.len())?;
+    Ok(UvMesh { mesh: Mesh::new(p, f), uv, uv_faces })
+}
+
+fn uv_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 2]>> {
+    let v = a.as_array();
+    if v.ncols() != 2 {
+        return Err(PyValueError::new_err("uv must have shape (K, 2)"));
+    }
+    Ok(v.rows().into_iter().map(|r| [r[0], r[1]]).collect())
+}
+
+/// UV index triangles: one row of 3 indices per face, into a list of `uv_count` UVs.
+fn uv_faces_of(
+    a: &PyReadonlyArray2<i64>,
+    face_count: usize,
+    uv_count: usize,
+) -> PyResult<Vec<[u32; 3]>> {
+    let v = a.as_array();
+    if v.ncols() != 3 || v.nrows() != face_count {
+        return Err(PyValueError::new_err(format!(
+            "uv_faces must have shape ({face_count}, 3), one row per face"
+        )));
+    }
+    v.rows()
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let t = [r[0], r[1], r[2]];
+            if t.iter().any(|&x| x < 0 || x as u64 >= uv_count as u64) {
+                return Err(PyValueError::new_err(format!(
+                    "uv_faces row {i} refers to a UV outside 0..{uv_count}"
+                )));
+            }
+            Ok(t.map(|x| x as u32))
+        })
+        .collect()
+}
+
+/// An RGB texture from an (H, W, 3) uint8 array, rows from the top.
+pub(crate) fn texture_of(a: &PyReadonlyArray3<u8>) -> PyResult<Texture> {
+    let v = a.as_array();
+    let (height, width, channels) = v.dim();
+    if channels != 3 || width == 0 || height == 0 {
+        return Err(PyValueError::new_err(format!(
+            "texture must have shape (H, W, 3) with H, W >= 1, not ({height}, {width}, {channels})"
+        )));
+    }
+    let v = v.as_standard_layout();
+    let bytes = v.as_slice().expect("standard layout is contiguous");
+    Ok(Texture { width, height, rgb: bytes.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect() })
+}
+
+/// mmetric's sampling grid over a finite, non-inverted box.
+fn grid_of(box_min: [f64; 3], box_max: [f64; 3], grid_size: u32) -> PyResult<SamplingGrid> {
+    if grid_size < 2 {
+        return Err(PyValueError::new_err("grid size must be at least 2"));
+    }
+    let finite = box_min.iter().chain(&box_max).all(|v| v.is_finite());
+    if !finite || (0..3).any(|k| box_min[k] > box_max[k]) {
+        return Err(PyValueError::new_err(format!(
+            "box must be finite with box_min <= box_max, not {box_min:?}..{box_max:?}"
+        )));
+    }
+    Ok(SamplingGrid::over_box(box_min, box_max, grid_size))
+}

@@ -1,0 +1,1444 @@
+//! Texture transfer onto a new UV atlas, and padding of the atlas gutters.
+//!
+//! The encoder codes a reconstructed mesh (a subdivided, displaced base mesh) whose UV atlas
+//! differs from the input frame's. As in V-DMC, the input frame's texture is therefore
+//! re-sampled onto the reconstructed mesh's atlas: every texel of the new atlas that a UV
+//! triangle covers is mapped to its 3D point on the reconstructed surface, that point is
+//! projected onto the input surface (closest point), and the input texture is read at the
+//! input UVs of the projection. [`transfer_texture`] does this; [`pad`] then fills the texels
+//! no chart covers with smooth colour (push-pull), because a video coder spends many bits on
+//! the sharp edges between charts and an untouched (black) gutter.
+//!
+//! Image conventions are those of [`crate::texture`]: rows from the top, `v` up, texel
+//! `(x, y)` centred at `u = (x + 0.5) / width`, `v = 1 - (y + 0.5) / height`.
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use crate::bvh::Bvh;
+use crate::mesh::{add, cross, dot, norm, normalize, scale, sub, Mesh};
+use crate::texture::{Texture, UvMesh};
+
+/// How far around a UV triangle texels are still covered, in texels along each axis: a
+/// texel counts when its centre lies strictly within this Chebyshev distance of the
+/// triangle. One texel is exactly the reach of a bilinear lookup, so every lookup at a UV
+/// inside a chart reads transferred colour, never gutter.
+const REACH: f64 = 1.0;
+
+/// Image rows rasterised and transferred by one rayon task. Small enough that a 2048-row
+/// atlas gives hundreds of tasks to balance (charts are unevenly spread over the rows), large
+/// enough that a UV triangle rarely straddles two bands and is rasterised twice.
+const BAND: usize = 8;
+
+/// UV triangles with less than this doubled area (in texels²) are treated as degenerate: they
+/// hold no texel centre, and their barycentrics would be mostly rounding.
+const MIN_AREA2: f64 = 1e-12;
+
+/// The result of [`transfer_texture`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Transferred {
+    /// The target's texture: transferred colour on covered texels, black elsewhere.
+    pub texture: Texture,
+    /// One flag per texel (row-major from the top): whether a UV triangle of the target covers
+    /// it, i.e. whether the texel holds transferred colour. Input of [`pad`].
+    pub covered: Vec<bool>,
+}
+
+/// Re-samples `source_texture`, the texture of `source`, onto the UV atlas of `target`, as a
+/// `width` x `height` texture.
+///
+/// A texel is covered when its centre lies strictly within one texel (along each axis) of a
+/// UV triangle of `target`, so that bilinear lookups anywhere inside a chart read transferred
+/// colour. Its colour is found thus: the texel centre, clamped onto the nearest point of the
+/// UV triangle, gives barycentrics; these give a 3D point on the target's triangle; the
+/// closest point of the source surface to it (lowest source face on ties) gives a source face
+/// and barycentrics there, which interpolate the source UVs; `source_texture` is sampled
+/// bilinearly at them ([`Texture::sample`]) and rounded.
+///
+/// When several UV triangles cover a texel, the one nearest to its centre wins (distance 0
+/// for every triangle that contains it), and among equally near ones the lowest face index;
+/// so overlapping charts and texels on shared UV edges get one deterministic owner, and a
+/// chart's own texels are never taken over by the margin of a neighbouring chart. The result
+/// does not depend on the number of rayon threads.
+///
+/// Both meshes must pass [`UvMesh::validate`] (not checked here, except that nothing panics);
+/// `width` and `height` must be at least 1. Edge cases: UV triangles of zero area are skipped;
+/// UVs outside [0, 1] are clipped to the image (a triangle off the image covers nothing);
+/// source UVs outside [0, 1] read the border texels of `source_texture`. An empty `target`
+/// covers nothing, and with an empty `source` no colour can be found, so nothing is covered
+/// either: the texture is then all black.
+pub fn transfer_texture(
+    target: &UvMesh,
+    source: &UvMesh,
+    source_texture: &Texture,
+    width: usize,
+    height: usize,
+) -> Transferred {
+    let mut rgb = vec![[0u8; 3]; width * height];
+    let mut covered = vec![false; width * height];
+    if !source.mesh.faces.is_empty() {
+        let prepared = Source::new(&source.mesh);
+        let (span, reuse) = reaches(target, prepared.edge, width, height);
+        let ctx = Context { target, source, source_texture, prepared, span, reuse, width, height };
+        let bins = bin_faces(&ctx);
+        let rows = BAND * width;
+        // Each rayon job reuses its buffers and finder over its bands; the results do not
+        // depend on what the finder remembers, so neither on how the bands are split.
+        rgb.par_chunks_mut(rows).zip(covered.par_chunks_mut(rows)).enumerate().for_each_init(
+            || Worker::new(&ctx),
+            |worker, (band, (rgb, covered))| {
+                let faces = &bins.faces[bins.starts[band]..bins.starts[band + 1]];
+                worker.band(band * BAND, faces, rgb, covered);
+            },
+        );
+    }
+    Transferred { texture: Texture { width, height, rgb }, covered }
+}
+
+/// Everything the per-band workers read.
+struct Context<'a> {
+    target: &'a UvMesh,
+    source: &'a UvMesh,
+    source_texture: &'a Texture,
+    prepared: Source,
+    /// How far a [`Finder`]'s shortlist reaches beyond the distance to the source, and a
+    /// [`Nearby`] beyond that: see [`reaches`].
+    span: f64,
+    reuse: f64,
+    width: usize,
+    height: usize,
+}
+
+impl Context<'_> {
+    fn uv_triangle(&self, face: u32) -> Option<UvTriangle> {
+        let uv = self.target.uv_faces[face as usize].map(|i| self.target.uv[i as usize]);
+        UvTriangle::new(uv, self.width, self.height)
+    }
+
+    fn target_corners(&self, face: u32) -> [[f64; 3]; 3] {
+        self.target.mesh.faces[face as usize].map(|v| self.target.mesh.positions[v as usize])
+    }
+
+    /// The source texture at the source UVs of `hit`, rounded.
+
+    #[inline(never)]    fn colour(&self, hit: &Hit) -> [u8; 3] {
+        let uv = self.source.uv_faces[hit.triangle as usize].map(|i| self.source.uv[i as usize]);
+        let w = hit.bary;
+        let uv = [0, 1].map(|k| w[0] * uv[0][k] + w[1] * uv[1][k] + w[2] * uv[2][k]);
+        // Truncating after adding a half rounds these non-negative values, without the
+        // library call that `f64::round` costs on baseline x86-64.
+        self.source_texture.sample(uv).map(|c| (c + 0.5) as u8)
+    }
+}
+
+/// Target faces listed per band of rows (compressed rows: band `b` holds
+/// `faces[starts[b]..starts[b + 1]]`, in face order).
+struct Bins {
+    starts: Vec<usize>,
+    faces: Vec<u32>,
+}
+
+/// Sorts the target faces into the bands their covered texels may fall in, so that each band
+/// task visits only its own faces.
+    #[inline(never)]
+fn bin_faces(ctx: &Context) -> Bins {
+    let bands = ctx.height.div_ceil(BAND);
+    let ranges: Vec<Option<Range<usize>>> = (0..ctx.target.mesh.faces.len() as u32)
+        .into_par_iter()
+        .map(|f| {
+            let (_, rows) = ctx.uv_triangle(f)?.texels(ctx.width, ctx.height)?;
+            Some(rows.start / BAND..(rows.end - 1) / BAND + 1)
+        })
+        .collect();
+    let mut starts = vec![0usize; bands + 1];
+    for r in ranges.iter().flatten() {
+        for b in r.clone() {
+            starts[b + 1] += 1;
+        }
+    }
+    for b in 0..bands {
+        starts[b + 1] += starts[b];
+    }
+    let mut next = starts.clone();
+    let mut faces = vec![0u32; starts[bands]];
+    for (f, r) in ranges.iter().enumerate() {
+        for b in r.iter().flat_map(|r| r.clone()) {
+            faces[next[b]] = f as u32;
+            next[b] += 1;
+        }
+    }
+    Bins { starts, faces }
+}
+
+/// Texels per side of the square tiles in which a band is transferred: consecutive texels
+/// then lie close together on the target, and mostly share the [`Finder`]'s shortlist.
+const TILE: usize = 8;
+
+/// One rayon job's state: the finder and the buffers of a band.
+struct Worker<'a> {
+    ctx: &'a Context<'a>,
+    finder: Finder<'a>,
+    tris: Vec<(u32, UvTriangle)>,
+    owners: Owners,
+}
+
+impl<'a> Worker<'a> {
+    fn new(ctx: &'a Context<'a>) -> Self {
+        let finder = Finder::new(&ctx.prepared, ctx.span, ctx.reuse);
+        Self { ctx, finder, tris: Vec::new(), owners: Owners { keys: Vec::new(), bary: Vec::new() } }
+    }
+
+    /// Rasterises `faces` into the band of rows starting at `y0` and transfers the colour of
+    /// every texel they cover.
+
+    #[inline(never)]    fn band(&mut self, y0: usize, faces: &[u32], rgb: &mut [[u8; 3]], covered: &mut [bool]) {
+        let ctx = self.ctx;
+        let (w, rows) = (ctx.width, rgb.len() / ctx.width);
+        self.tris.clear();
+        self.tris.extend(faces.iter().filter_map(|&f| Some((f, ctx.uv_triangle(f)?))));
+        self.owners.draw_band(ctx, y0, rows, &self.tris);
+        for x0 in (0..w).step_by(TILE) {
+            for row in 0..rows {
+                for i in row * w + x0..row * w + (x0 + TILE).min(w) {
+                    let Some((face, bary)) = self.owners.get(i) else { continue };
+                    if let Some(hit) = self.finder.closest(interpolate(ctx.target_corners(face), bary)) {
+                        rgb[i] = ctx.colour(&hit);
+                        covered[i] = true;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The face that owns each texel of a band, and the barycentrics of the texel's point on it.
+struct Owners {
+    /// `FREE`, or the distance from the texel centre to the triangle in the high half (as
+    /// `f32` bits, which order like the non-negative values; 0 only for a texel inside) and
+    /// the face index in the low half: the minimum key is the nearest face, lowest index
+    /// first, whatever the order in which faces are drawn.
+    keys: Vec<u64>,
+    bary: Vec<[f64; 3]>,
+}
+
+/// No face owns the texel.
+const FREE: u64 = u64::MAX;
+
+impl Owners {
+    /// Finds the owners of the texels of the band of `rows` rows from `y0` among `tris`.
+
+    #[inline(never)]    fn draw_band(&mut self, ctx: &Context, y0: usize, rows: usize, tris: &[(u32, UvTriangle)]) {
+        self.keys.clear();
+        self.keys.resize(rows * ctx.width, FREE);
+        self.bary.resize(rows * ctx.width, [0.0; 3]);
+        let owners = self;
+        // Insides first: a texel inside some triangle then skips the margin work of all the
+        // others, and only chart borders pay for it.
+        for (face, tri) in tris {
+            let texels = tri.box_texels(ctx.width, ctx.height);
+            owners.draw(ctx.width, y0..y0 + rows, texels, *face, |_| true, |p| Some((tri.inside(p)?, 0)));
+        }
+        for (face, tri) in tris {
+            let texels = tri.texels(ctx.width, ctx.height);
+            let margin = |p| tri.margin(p).map(|(w, d2)| (w, margin_rank(d2)));
+            owners.draw(ctx.width, y0..y0 + rows, texels, *face, |key| key >> 32 != 0, margin);
+        }
+    }
+
+    /// Offers `texels` (columns, rows) within the band's `rows` to `face`, where `open` says
+    /// the current key may still be beaten and `locate` gives the face's barycentrics and
+    /// distance rank at a texel centre, or `None` if it does not cover it.
+
+    #[inline(never)]    fn draw(
+        &mut self,
+        width: usize,
+        rows: Range<usize>,
+        texels: Option<(Range<usize>, Range<usize>)>,
+        face: u32,
+        open: impl Fn(u64) -> bool,
+        locate: impl Fn([f64; 2]) -> Option<([f64; 3], u32)>,
+    ) {
+        let Some((xs, ys)) = texels else { return };
+        for y in ys.start.max(rows.start)..ys.end.min(rows.end) {
+            for x in xs.clone() {
+                let i = (y - rows.start) * width + x;
+                if !open(self.keys[i]) {
+                    continue;
+                }
+                let Some((bary, rank)) = locate(texel_centre(x, y)) else { continue };
+                let key = u64::from(rank) << 32 | u64::from(face);
+                if key < self.keys[i] {
+                    self.keys[i] = key;
+                    self.bary[i] = bary;
+                }
+            }
+        }
+    }
+
+    fn get(&self, i: usize) -> Option<(u32, [f64; 3])> {
+        (self.keys[i] != FREE).then(|| (self.keys[i] as u32, self.bary[i]))
+    }
+}
+
+/// The distance rank of a texel in a triangle's margin: its squared distance as `f32` bits,
+/// at least 1 so that it never ties with a texel inside.
+fn margin_rank(d2: f64) -> u32 {
+    (d2 as f32).to_bits().max(1)
+}
+
+/// Centre of texel `(x, y)` in texel units (x right, y down).
+fn texel_centre(x: usize, y: usize) -> [f64; 2] {
+    [x as f64 + 0.5, y as f64 + 0.5]
+}
+
+/// A UV triangle in texel units: `x = u * width`, `y = (1 - v) * height`.
+struct UvTriangle {
+    corners: [[f64; 2]; 3],
+    /// Edge function of edge `i` (corner `i` to corner `i + 1`): `e(p) = n · p + c`, oriented
+    /// to be >= 0 inside, where it is the barycentric of corner `i + 2` times twice the area.
+    n: [[f64; 2]; 3],
+    c: [f64; 3],
+    lo: [f64; 2],
+    hi: [f64; 2],
+}
+
+impl UvTriangle {
+    /// `None` for a degenerate triangle (or one whose texel coordinates overflow).
+    fn new(uv: [[f64; 2]; 3], width: usize, height: usize) -> Option<Self> {
+        let corners = uv.map(|p| [p[0] * width as f64, (1.0 - p[1]) * height as f64]);
+        let [a, b, c] = corners;
+        let area2 = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        if !(area2.abs() > MIN_AREA2 && area2.is_finite()) {
+            return None;
+        }
+        let s = area2.signum();
+        let n = [0, 1, 2].map(|i| {
+            let (p, q) = (corners[i], corners[(i + 1) % 3]);
+            [-s * (q[1] - p[1]), s * (q[0] - p[0])]
+        });
+        let lo = [0, 1].map(|k| a[k].min(b[k]).min(c[k]));
+        let hi = [0, 1].map(|k| a[k].max(b[k]).max(c[k]));
+        let c = [0, 1, 2].map(|i| -(n[i][0] * corners[i][0] + n[i][1] * corners[i][1]));
+        Some(Self { corners, n, c, lo, hi })
+    }
+
+    /// The texels (columns, rows; clipped to the image) whose centres lie strictly within
+    /// `REACH` of the triangle's box: all it may cover.
+    fn texels(&self, width: usize, height: usize) -> Option<(Range<usize>, Range<usize>)> {
+        let axis = |k: usize, n: usize| centres_within(self.lo[k] - REACH, self.hi[k] + REACH, n, false);
+        Some((axis(0, width)?, axis(1, height)?))
+    }
+
+    /// The texels whose centres lie in the triangle's closed box: all it may contain.
+    fn box_texels(&self, width: usize, height: usize) -> Option<(Range<usize>, Range<usize>)> {
+        let axis = |k: usize, n: usize| centres_within(self.lo[k], self.hi[k], n, true);
+        Some((axis(0, width)?, axis(1, height)?))
+    }
+
+    fn edge_functions(&self, p: [f64; 2]) -> [f64; 3] {
+        [0, 1, 2].map(|i| self.n[i][0] * p[0] + self.n[i][1] * p[1] + self.c[i])
+    }
+
+    /// Barycentrics of `p` if it lies inside the triangle (edges included). The box test
+    /// first, so that rounding in the edge functions cannot let in a point beyond the box that
+    /// [`UvTriangle::box_texels`] leaves out.
+    fn inside(&self, p: [f64; 2]) -> Option<[f64; 3]> {
+        if (0..2).any(|k| p[k] < self.lo[k] || p[k] > self.hi[k]) {
+            return None;
+        }
+        let e = self.edge_functions(p);
+        let sum = e[0] + e[1] + e[2];
+        (e.iter().all(|&x| x >= 0.0) && sum > 0.0).then(|| [e[1] / sum, e[2] / sum, e[0] / sum])
+    }
+
+    /// For `p` outside the triangle but strictly within `REACH` of it along each axis: the
+    /// barycentrics of the nearest point of the triangle and the squared distance to it. The
+    /// test is the separating-axis test of the triangle against the square of half-side
+    /// `REACH` around `p`: the square's own axes, then the edge normals.
+    fn margin(&self, p: [f64; 2]) -> Option<([f64; 3], f64)> {
+        if (0..2).any(|k| p[k] <= self.lo[k] - REACH || p[k] >= self.hi[k] + REACH) {
+            return None;
+        }
+        let e = self.edge_functions(p);
+        let reach = |i: usize| REACH * (self.n[i][0].abs() + self.n[i][1].abs());
+        if (0..3).any(|i| e[i] + reach(i) <= 0.0) {
+            return None;
+        }
+        Some(self.nearest_on_edges(p))
+    }
+
+    /// The nearest point of the boundary (not merely clamped barycentrics, so that the colour
+    /// comes from the nearest part of the chart).
+    fn nearest_on_edges(&self, p: [f64; 2]) -> ([f64; 3], f64) {
+        let mut best = ([1.0, 0.0, 0.0], f64::INFINITY);
+        for i in 0..3 {
+            let (a, b) = (self.corners[i], self.corners[(i + 1) % 3]);
+            let (t, d2) = nearest_on_segment(p, a, b);
+            if d2 < best.1 {
+                let mut w = [0.0; 3];
+                w[i] = 1.0 - t;
+                w[(i + 1) % 3] = t;
+                best = (w, d2);
+            }
+        }
+        best
+    }
+}
+
+/// The indices `i` in `0..n` whose centres `i + 0.5` lie in `[lo, hi]` (`closed`) or in
+/// `(lo, hi)`, or `None` if there are none.
+fn centres_within(lo: f64, hi: f64, n: usize, closed: bool) -> Option<Range<usize>> {
+    let (first, last) = if closed {
+        ((lo - 0.5).ceil(), (hi - 0.5).floor())
+    } else {
+        ((lo - 0.5).floor() + 1.0, (hi - 0.5).ceil() - 1.0)
+    };
+    let (first, last) = (first.max(0.0), last.min(n as f64 - 1.0));
+    (first <= last).then(|| first as usize..last as usize + 1)
+}
+
+/// The closest point of the source to a texel's point: source face, barycentrics there, and
+/// squared distance.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Hit {
+    triangle: u32,
+    bary: [f64; 3],
+    dist2: f64,
+}
+
+/// The source surface, prepared for closest-point queries.
+struct Source {
+    bvh: Bvh,
+    grid: Grid,
+    /// Corners of each face.
+    tris: Vec<[[f64; 3]; 3]>,
+    bounds: Vec<Bound>,
+    /// Bounding sphere (centre, radius) of each face: a yet cheaper first test.
+    spheres: Vec<[f64; 4]>,
+    /// Mean edge length.
+    edge: f64,
+    /// Absolute slack on distance comparisons, against rounding (whose error grows with the
+    /// coordinates' magnitude).
+    eps: f64,
+}
+
+impl Source {
+
+    #[inline(never)]    fn new(mesh: &Mesh) -> Self {
+        let tris: Vec<[[f64; 3]; 3]> = mesh.faces.par_iter().map(|f| f.map(|v| mesh.positions[v as usize])).collect();
+        let bounds = tris.par_iter().map(|&t| Bound::new(t)).collect();
+        let spheres = tris.par_iter().map(|&t| bounding_sphere(t)).collect();
+        let edge = mean_edge(&tris);
+        let (bvh, grid) = rayon::join(|| Bvh::new(&mesh.positions, &mesh.faces), || Grid::new(&tris, edge));
+        let eps = 1e-12 * (1.0 + mesh.positions.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs())));
+        Self { bvh, grid, tris, bounds, spheres, edge, eps }
+    }
+
+    /// The closest point to `q` of source face `face`.
+
+    #[inline(never)]    fn hit(&self, q: [f64; 3], face: u32) -> Hit {
+        let (_, dist2, bary) = closest_on_triangle(q, self.tris[face as usize]);
+        Hit { triangle: face, bary, dist2 }
+    }
+
+    /// A lower bound on the distance from `q` to source face `face`.
+    fn lower(&self, face: u32, q: [f64; 3]) -> f64 {
+        self.bounds[face as usize].lower(q)
+    }
+}
+
+fn bounding_sphere(t: [[f64; 3]; 3]) -> [f64; 4] {
+    let c = scale(add(add(t[0], t[1]), t[2]), 1.0 / 3.0);
+    let r = t.iter().map(|&p| norm(sub(p, c))).fold(0.0, f64::max);
+    [c[0], c[1], c[2], r]
+}
+
+/// Finds the closest source points of texels one after another, exploiting that consecutive
+/// texels lie close together on the target.
+///
+/// It keeps a shortlist: every source triangle within `radius` of a `centre`, with a lower
+/// bound on its distance from the centre, nearest first. For a query `q` at `delta` from the
+/// centre, a triangle as close to `q` as the best one found (at `d`) lies within `delta + d`
+/// of the centre; so if that is within the radius, the shortlist holds every candidate, and
+/// the scan may stop at the first bound beyond `delta + d`. Otherwise the shortlist is made
+/// anew around `q`, from the triangles of a [`Nearby`] that serves many shortlists. The
+/// answers are those of [`Bvh::closest_point`] on the whole source, tie-breaking included: the
+/// same distance code runs over every triangle that could win.
+struct Finder<'a> {
+    source: &'a Source,
+    span: f64,
+    reuse: f64,
+    near: Option<Nearby>,
+    /// (Lower bound on the distance from `centre`, source face), ascending.
+    shortlist: Vec<(f64, u32)>,
+    centre: [f64; 3],
+    radius: f64,
+    /// The source face of the last answer, tried first.
+    hint: Option<u32>,
+    /// Queries left to send straight to the whole source's Bvh, after listing failed.
+    cooldown: u32,
+    seen: Seen,
+}
+
+/// Queries sent straight to the Bvh after a failed listing, before listing is tried again:
+/// where the target is far from the source, every texel would otherwise gather in vain.
+const COOLDOWN: u32 = 64;
+
+impl<'a> Finder<'a> {
+    fn new(source: &'a Source, span: f64, reuse: f64) -> Self {
+        let (near, shortlist, hint, seen) = (None, Vec::new(), None, Seen::new(source.tris.len()));
+        let (centre, radius, cooldown) = ([0.0; 3], f64::NEG_INFINITY, 0);
+        Self { source, span, reuse, near, shortlist, centre, radius, hint, cooldown, seen }
+    }
+
+    /// The closest point of the source to `q`; `None` only for an empty source.
+    fn closest(&mut self, q: [f64; 3]) -> Option<Hit> {
+        if self.cooldown == 0 {
+            let (hit, certain) = self.scan(q);
+            if certain {
+                return hit;
+            }
+            let upper = match hit {
+                Some(h) => h.dist2.sqrt(),
+                None => self.source.bvh.closest_point(q)?.dist2.sqrt(),
+            };
+            if self.renew(q, upper) {
+                return self.scan(q).0;
+            }
+            self.cooldown = COOLDOWN;
+        }
+        self.cooldown -= 1;
+        let hit = self.source.hit(q, self.source.bvh.closest_point(q)?.triangle);
+        self.hint = Some(hit.triangle);
+        Some(hit)
+    }
+
+    /// The best of the shortlist for `q`, and whether it is sure to be the best of all. The
+    /// last answer is tried first: the next texel mostly has the same, and its distance then
+    /// rules out most other triangles of the list by their bounds alone.
+
+    #[inline(never)]    fn scan(&mut self, q: [f64; 3]) -> (Option<Hit>, bool) {
+        let (source, eps) = (self.source, self.source.eps);
+        let delta = norm(sub(q, self.centre));
+        let mut best: Option<Hit> = self.hint.map(|h| source.hit(q, h));
+        let mut best_dist = best.map_or(f64::INFINITY, |b| b.dist2.sqrt());
+        for &(lower, f) in &self.shortlist {
+            if lower - delta > best_dist + eps {
+                break;
+            }
+            if Some(f) == self.hint || source.lower(f, q) > best_dist + eps {
+                continue;
+            }
+            let hit = source.hit(q, f);
+            if best.map_or(true, |b| hit.dist2 < b.dist2 || (hit.dist2 == b.dist2 && f < b.triangle)) {
+                best = Some(hit);
+                best_dist = hit.dist2.sqrt();
+            }
+        }
+        self.hint = best.map(|b| b.triangle);
+        (best, !self.shortlist.is_empty() && delta + best_dist <= self.radius - eps)
+    }
+
+    /// Lists the triangles within `upper + span` of `q`, `upper` being the distance from `q`
+    /// to some source triangle (so that one at least is listed). Where the source is dense,
+    /// gathers less far, then lists less far; `false` if even that is too many.
+
+    #[inline(never)]    fn renew(&mut self, q: [f64; 3], upper: f64) -> bool {
+        let eps = self.source.eps;
+        for (span, reuse) in [(self.span, self.reuse), (self.span, 0.0), (self.span / 8.0, 0.0)] {
+            let radius = upper + span;
+            if !self.near.as_ref().is_some_and(|n| n.holds(q, radius, eps)) {
+                self.near = Nearby::gather(self.source, &mut self.seen, q, radius + reuse);
+            }
+            if let Some(near) = &self.near {
+                self.shortlist.clear();
+                near.shortlist(self.source, q, radius + eps, &mut self.shortlist);
+                (self.centre, self.radius) = (q, radius);
+                return true;
+            }
+        }
+        self.shortlist.clear();
+        self.radius = f64::NEG_INFINITY;
+        false
+    }
+}
+
+/// Gathered triangles per [`Nearby`] beyond which gathering costs more than it saves: the
+/// queries then go to the whole source's Bvh.
+const MAX_NEARBY: usize = 1024;
+/// Grid cells a gathering may visit, for the same reason.
+const MAX_GATHER_CELLS: usize = 4096;
+
+/// The source triangles near a ball.
+struct Nearby {
+    centre: [f64; 3],
+    /// Every source triangle whose bounding box comes within `radius` of `centre` is here.
+    radius: f64,
+    faces: Vec<u32>,
+}
+
+impl Nearby {
+    /// The triangles near the ball of `radius` around `centre`, or `None` if there are too
+    /// many.
+
+    #[inline(never)]    fn gather(source: &Source, seen: &mut Seen, centre: [f64; 3], radius: f64) -> Option<Self> {
+        let faces = source.grid.near(centre, radius + source.eps, seen)?;
+        Some(Self { centre, radius, faces })
+    }
+
+    /// Whether every triangle within `reach` of `c` is here: such a triangle comes within
+    /// `|c - centre| + reach` of the centre.
+    fn holds(&self, c: [f64; 3], reach: f64, eps: f64) -> bool {
+        norm(sub(c, self.centre)) + reach <= self.radius - eps
+    }
+
+    /// Appends to `out` the triangles that may lie within `reach` of `c`, nearest first.
+
+    #[inline(never)]    fn shortlist(&self, source: &Source, c: [f64; 3], reach: f64, out: &mut Vec<(f64, u32)>) {
+        for &f in &self.faces {
+            let [x, y, z, r] = source.spheres[f as usize];
+            let d = sub(c, [x, y, z]);
+            if dot(d, d) <= (reach + r).powi(2) {
+                let lower = source.lower(f, c);
+                if lower <= reach {
+                    out.push((lower, f));
+                }
+            }
+        }
+        out.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+    }
+}
+
+/// Marks the faces already met during one gathering, without clearing between gatherings.
+struct Seen {
+    stamp: Vec<u32>,
+    now: u32,
+}
+
+impl Seen {
+    fn new(n: usize) -> Self {
+        Self { stamp: vec![0; n], now: 0 }
+    }
+
+    fn next(&mut self) {
+        self.now = self.now.wrapping_add(1);
+        if self.now == 0 {
+            self.stamp.fill(0);
+            self.now = 1;
+        }
+    }
+
+    /// Whether `f` is met for the first time in this gathering.
+    fn first(&mut self, f: u32) -> bool {
+        std::mem::replace(&mut self.stamp[f as usize], self.now) != self.now
+    }
+}
+
+/// Planes that bound a triangle: a slab around its plane and the three half-spaces of its
+/// edges (normals of length at most 1). The farthest of them from a point is a lower bound on
+/// the distance to the triangle, about as tight as the distance itself except off the corners,
+/// for a fifth of its cost. Built from the triangle's own corners, so that it holds for
+/// degenerate triangles too (where it is only weaker).
+struct Bound {
+    normal: [f64; 3],
+    /// The slab `lo <= normal · x <= hi` holds the triangle.
+    lo: f64,
+    hi: f64,
+    /// Edge `i`'s half-space `edge[i] · x <= offset[i]` holds the triangle.
+    edge: [[f64; 3]; 3],
+    offset: [f64; 3],
+}
+
+impl Bound {
+    fn new(t: [[f64; 3]; 3]) -> Self {
+        let normal = normalize(cross(sub(t[1], t[0]), sub(t[2], t[0])));
+        let along = |n: [f64; 3]| t.map(|p| dot(n, p));
+        let s = along(normal);
+        let edge = [0, 1, 2].map(|i| normalize(cross(sub(t[(i + 1) % 3], t[i]), normal)));
+        let offset = edge.map(|m| along(m).into_iter().fold(f64::NEG_INFINITY, f64::max));
+        let (lo, hi) = (s[0].min(s[1]).min(s[2]), s[0].max(s[1]).max(s[2]));
+        Self { normal, lo, hi, edge, offset }
+    }
+
+
+    #[inline(never)]    fn lower(&self, q: [f64; 3]) -> f64 {
+        let s = dot(self.normal, q);
+        let mut d = (s - self.hi).max(self.lo - s);
+        for i in 0..3 {
+            d = d.max(dot(self.edge[i], q) - self.offset[i]);
+        }
+        d
+    }
+}
+
+/// How far beyond its own distance to the source a shortlist of the [`Finder`] reaches (the
+/// first value), and a [`Nearby`] beyond that (the second). A shortlist serves the texels up to
+/// about its reach from the first, so the reach spans a tile of texels on the target (whose
+/// texel size comes from a sample of its faces); but it is kept between a quarter and two
+/// source edges, so that shortlists stay short and are not remade at every texel.
+    #[inline(never)]
+fn reaches(target: &UvMesh, edge: f64, width: usize, height: usize) -> (f64, f64) {
+    let step = target.mesh.faces.len().div_ceil(4096).max(1);
+    let (mut area, mut texels) = (0.0, 0.0);
+    for f in (0..target.mesh.faces.len()).step_by(step) {
+        let [a, b, c] = target.mesh.faces[f].map(|v| target.mesh.positions[v as usize]);
+        area += norm(cross(sub(b, a), sub(c, a)));
+        let [p, q, r] = target.uv_faces[f].map(|i| target.uv[i as usize]);
+        texels += ((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])).abs() * (width * height) as f64;
+    }
+    let texel = if texels > 0.0 { (area / texels).sqrt() } else { 0.0 };
+    let span = (TILE as f64 * texel).clamp(0.25 * edge, 2.0 * edge);
+    let span = if span > 0.0 && span.is_finite() { span } else { 1.0 };
+    (span, 2.0 * span)
+}
+
+fn mean_edge(tris: &[[[f64; 3]; 3]]) -> f64 {
+    let total: f64 = tris.par_iter().map(|[a, b, c]| norm(sub(*b, *a)) + norm(sub(*c, *b)) + norm(sub(*a, *c))).sum();
+    total / (3 * tris.len().max(1)) as f64
+}
+
+type Aabb = ([f64; 3], [f64; 3]);
+
+fn box_dist2((lo, hi): &Aabb, q: [f64; 3]) -> f64 {
+    (0..3).map(|k| (lo[k] - q[k]).max(q[k] - hi[k]).max(0.0).powi(2)).sum()
+}
+
+/// Cells a grid may have: enough for triangle-sized cells on meshes of a few 100k triangles,
+/// few enough to build in milliseconds whatever the mesh's shape.
+const MAX_CELLS: f64 = 4_000_000.0;
+
+/// The source triangles bucketed by the cells of a uniform grid that their bounding boxes
+/// overlap: the query for all triangles near a ball, which [`Nearby`] needs and [`Bvh`] does
+/// not offer.
+struct Grid {
+    lo: [f64; 3],
+    cell: f64,
+    dims: [usize; 3],
+    /// Cell `i` holds `faces[starts[i]..starts[i + 1]]`.
+    starts: Vec<u32>,
+    faces: Vec<u32>,
+    /// Bounding box of each source face.
+    boxes: Vec<Aabb>,
+}
+
+impl Grid {
+    /// A grid over triangles `tris`, with cells about `edge` across.
+    fn new(tris: &[[[f64; 3]; 3]], edge: f64) -> Self {
+        let boxes: Vec<Aabb> = tris.iter().map(|&t| triangle_box(t)).collect();
+        let (lo, hi) = boxes.iter().fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(lo, hi), b| {
+            ([0, 1, 2].map(|k| lo[k].min(b.0[k])), [0, 1, 2].map(|k| hi[k].max(b.1[k])))
+        });
+        let extent = [0, 1, 2].map(|k| (hi[k] - lo[k]).max(0.0));
+        let largest = extent.iter().fold(0.0f64, |m, &e| m.max(e));
+        // Cells about a triangle across, but at most ~1000 along an axis and MAX_CELLS in
+        // all, so a mesh of tiny triangles spread far apart cannot blow up the grid.
+        let mut cell = edge.max(largest / 1024.0);
+        if !(cell > 0.0) {
+            cell = 1.0;
+        }
+        let cells = |cell: f64| extent.iter().map(|e| (e / cell).floor() + 1.0).product::<f64>();
+        while cells(cell) > MAX_CELLS {
+            cell *= 1.25;
+        }
+        let dims = extent.map(|e| (e / cell) as usize + 1);
+        let mut grid = Self { lo, cell, dims, starts: Vec::new(), faces: Vec::new(), boxes };
+        grid.fill();
+        grid
+    }
+
+    /// Buckets the faces by cell (counting sort: count, prefix sums, place).
+    fn fill(&mut self) {
+        let mut starts = vec![0u32; self.dims.iter().product::<usize>() + 1];
+        for b in &self.boxes {
+            self.for_cells(b, |c| starts[c + 1] += 1);
+        }
+        for c in 1..starts.len() {
+            starts[c] += starts[c - 1];
+        }
+        let mut next = starts.clone();
+        let mut faces = vec![0u32; *starts.last().unwrap_or(&0) as usize];
+        for (f, b) in self.boxes.iter().enumerate() {
+            self.for_cells(b, |c| {
+                faces[next[c] as usize] = f as u32;
+                next[c] += 1;
+            });
+        }
+        (self.starts, self.faces) = (starts, faces);
+    }
+
+    /// The cell range along each axis that the box `[lo, hi]` overlaps (clamped to the grid).
+    fn cell_range(&self, lo: [f64; 3], hi: [f64; 3]) -> [Range<usize>; 3] {
+        let at = |k: usize, x: f64| (((x - self.lo[k]) / self.cell).floor().max(0.0) as usize).min(self.dims[k] - 1);
+        [0, 1, 2].map(|k| at(k, lo[k])..at(k, hi[k]) + 1)
+    }
+
+    fn for_cells(&self, b: &Aabb, mut visit: impl FnMut(usize)) {
+        let [xs, ys, zs] = self.cell_range(b.0, b.1);
+        for z in zs {
+            for y in ys.clone() {
+                for x in xs.clone() {
+                    visit((z * self.dims[1] + y) * self.dims[0] + x);
+                }
+            }
+        }
+    }
+
+    /// The faces whose bounding boxes come within `radius` of `centre`; `None` if there are
+    /// more than `MAX_NEARBY` or too many cells to visit.
+
+    #[inline(never)]    fn near(&self, centre: [f64; 3], radius: f64, seen: &mut Seen) -> Option<Vec<u32>> {
+        let b = (centre.map(|c| c - radius), centre.map(|c| c + radius));
+        let count: usize = self.cell_range(b.0, b.1).iter().map(|r| r.len()).product();
+        if count > MAX_GATHER_CELLS {
+            return None;
+        }
+        seen.next();
+        let mut faces = Vec::new();
+        let mut full = false;
+        self.for_cells(&b, |c| {
+            for &f in &self.faces[self.starts[c] as usize..self.starts[c + 1] as usize] {
+                if seen.first(f) && box_dist2(&self.boxes[f as usize], centre) <= radius * radius {
+                    faces.push(f);
+                }
+            }
+            full |= faces.len() > MAX_NEARBY;
+        });
+        (!full).then_some(faces)
+    }
+}
+
+fn triangle_box(c: [[f64; 3]; 3]) -> Aabb {
+    let lo = [0, 1, 2].map(|k| c[0][k].min(c[1][k]).min(c[2][k]));
+    let hi = [0, 1, 2].map(|k| c[0][k].max(c[1][k]).max(c[2][k]));
+    (lo, hi)
+}
+
+/// Closest point of triangle `abc` to `p`, its squared distance and its barycentrics
+/// (Ericson, Real-Time Collision Detection 5.1.5). The point is computed as the Bvh's
+/// (private) function computes it, so that both pick the same triangle on ties. Degenerate
+/// triangles go to the segment fallback, where the region formulas would divide by zero.
+fn closest_on_triangle(p: [f64; 3], tri: [[f64; 3]; 3]) -> ([f64; 3], f64, [f64; 3]) {
+    let [a, b, c] = tri;
+    let ab = sub(b, a);
+    let ac = sub(c, a);
+    let n = cross(ab, ac);
+    let (point, bary) = if dot(n, n) <= 1e-20 * dot(ab, ab) * dot(ac, ac) {
+        closest_on_edges(p, tri)
+    } else {
+        let r = closest_on_proper_triangle(p, a, b, c, ab, ac);
+        if r.0.iter().all(|x| x.is_finite()) { r } else { closest_on_edges(p, tri) }
+    };
+    let d = sub(point, p);
+    (point, dot(d, d), bary)
+}
+
+fn closest_on_proper_triangle(
+    p: [f64; 3],
+    a: [f64; 3],
+    b: [f64; 3],
+    c: [f64; 3],
+    ab: [f64; 3],
+    ac: [f64; 3],
+) -> ([f64; 3], [f64; 3]) {
+    let ap = sub(p, a);
+    let (d1, d2) = (dot(ab, ap), dot(ac, ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return (a, [1.0, 0.0, 0.0]);
+    }
+    let bp = sub(p, b);
+    let (d3, d4) = (dot(ab, bp), dot(ac, bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return (b, [0.0, 1.0, 0.0]);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let t = d1 / (d1 - d3);
+        return (add(a, scale(ab, t)), [1.0 - t, t, 0.0]);
+    }
+    let cp = sub(p, c);
+    let (d5, d6) = (dot(ab, cp), dot(ac, cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return (c, [0.0, 0.0, 1.0]);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let t = d2 / (d2 - d6);
+        return (add(a, scale(ac, t)), [1.0 - t, 0.0, t]);
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return (add(b, scale(sub(c, b), w)), [0.0, 1.0 - w, w]);
+    }
+    let denom = 1.0 / (va + vb + vc);
+    let (v, w) = (vb * denom, vc * denom);
+    (add(a, add(scale(ab, v), scale(ac, w))), [1.0 - v - w, v, w])
+}
+
+fn closest_on_edges(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> ([f64; 3], [f64; 3]) {
+    let mut best = (a, f64::INFINITY, [1.0, 0.0, 0.0]);
+    for (k, (s, e)) in [(a, b), (b, c), (c, a)].into_iter().enumerate() {
+        let (x, t) = closest_on_segment(p, s, e);
+        let d = sub(x, p);
+        if dot(d, d) < best.1 {
+            let mut bary = [0.0; 3];
+            bary[k] = 1.0 - t;
+            bary[(k + 1) % 3] += t;
+            best = (x, dot(d, d), bary);
+        }
+    }
+    (best.0, best.2)
+}
+
+fn closest_on_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> ([f64; 3], f64) {
+    let ab = sub(b, a);
+    let len2 = dot(ab, ab);
+    if len2 <= 0.0 {
+        return (a, 0.0);
+    }
+    let t = (dot(sub(p, a), ab) / len2).clamp(0.0, 1.0);
+    (add(a, scale(ab, t)), t)
+}
+
+/// Parameter in [0, 1] of the point of segment `ab` nearest to `p`, and its squared distance.
+fn nearest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, f64) {
+    let (ab, ap) = ([b[0] - a[0], b[1] - a[1]], [p[0] - a[0], p[1] - a[1]]);
+    let len2 = ab[0] * ab[0] + ab[1] * ab[1];
+    let t = if len2 > 0.0 { ((ap[0] * ab[0] + ap[1] * ab[1]) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let d = [ap[0] - t * ab[0], ap[1] - t * ab[1]];
+    (t, d[0] * d[0] + d[1] * d[1])
+}
+
+fn interpolate(corners: [[f64; 3]; 3], w: [f64; 3]) -> [f64; 3] {
+    add(add(scale(corners[0], w[0]), scale(corners[1], w[1])), scale(corners[2], w[2]))
+}
+
+/// Fills the texels of `texture` that are not `covered` (one flag per texel, row-major from
+/// the top, as [`Transferred::covered`]) by push-pull, leaving covered texels unchanged.
+///
+/// Push: a pyramid of ever coarser images (each side halved, rounding up, down to 1 x 1), each
+/// texel the mean of the covered full-resolution texels beneath it. Pull: from the coarsest
+/// level up, every texel with nothing covered beneath it takes the bilinear upsampling of the
+/// level below it. The gutters thus continue the charts' colours smoothly and fade towards the
+/// mean colour of the neighbourhood, which a video coder codes cheaply. Any size works.
+///
+/// If no texel is covered there is nothing to spread and the texture is left as it is.
+/// Panics if `covered.len()` is not `width * height`.
+pub fn pad(texture: &mut Texture, covered: &[bool]) {
+    assert_eq!(covered.len(), texture.rgb.len(), "one coverage flag per texel");
+    if covered.iter().all(|&c| c) || !covered.contains(&true) {
+        return;
+    }
+    let mut levels = vec![reduce(texture.width, texture.height, |x, y| {
+        let i = y * texture.width + x;
+        (texture.rgb[i].map(f32::from), if covered[i] { 1.0 } else { 0.0 })
+    })];
+    while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
+        let next = reduce(last.width, last.height, |x, y| last.at(x, y));
+        levels.push(next);
+    }
+    for k in (0..levels.len() - 1).rev() {
+        let (fine, coarse) = levels.split_at_mut(k + 1);
+        fill_level(&mut fine[k], &coarse[0]);
+    }
+    fill_texture(texture, covered, &levels[0]);
+}
+
+/// One level of the push-pull pyramid.
+struct Level {
+    width: usize,
+    height: usize,
+    colour: Vec<[f32; 3]>,
+    /// Covered full-resolution texels beneath each texel; 0 means the colour is yet unknown.
+    weight: Vec<f32>,
+}
+
+impl Level {
+    fn at(&self, x: usize, y: usize) -> ([f32; 3], f32) {
+        let i = y * self.width + x;
+        (self.colour[i], self.weight[i])
+    }
+
+    /// The colour at the centre of texel `(x, y)` of the level above (twice the size),
+    /// interpolated bilinearly.
+    fn upsample(&self, x: usize, y: usize) -> [f32; 3] {
+        let ((x0, x1, tx), (y0, y1, ty)) = (taps(x, self.width), taps(y, self.height));
+        let c = |x: usize, y: usize| self.colour[y * self.width + x];
+        let (a, b, c, d) = (c(x0, y0), c(x1, y0), c(x0, y1), c(x1, y1));
+        std::array::from_fn(|k| {
+            let top = a[k] + (b[k] - a[k]) * tx;
+            let bottom = c[k] + (d[k] - c[k]) * tx;
+            top + (bottom - top) * ty
+        })
+    }
+}
+
+/// The two texels of a coarse row (of `n`) that fine texel `i` interpolates between, and the
+/// weight of the second: the fine centre lies a quarter of a coarse texel from the centre of
+/// its parent `i / 2`, towards the neighbour on its side (clamped at the border).
+fn taps(i: usize, n: usize) -> (usize, usize, f32) {
+    let j = i / 2;
+    match (i % 2, j) {
+        (0, 0) => (0, 0, 0.0),
+        (0, _) => (j - 1, j, 0.75),
+        _ if j + 1 < n => (j, j + 1, 0.25),
+        _ => (j, j, 0.0),
+    }
+}
+
+/// The next coarser level of a `width` x `height` level read through `fine`: each texel is the
+/// weighted mean of its (up to) four children.
+fn reduce(width: usize, height: usize, fine: impl Fn(usize, usize) -> ([f32; 3], f32) + Sync) -> Level {
+    let (w, h) = (width.div_ceil(2), height.div_ceil(2));
+    let mut colour = vec![[0.0f32; 3]; w * h];
+    let mut weight = vec![0.0f32; w * h];
+    colour.par_chunks_mut(w).zip(weight.par_chunks_mut(w)).enumerate().for_each(|(y, (crow, wrow))| {
+        for x in 0..w {
+            let (mut sum, mut total) = ([0.0f32; 3], 0.0f32);
+            for (fx, fy) in [(2 * x, 2 * y), (2 * x + 1, 2 * y), (2 * x, 2 * y + 1), (2 * x + 1, 2 * y + 1)] {
+                if fx < width && fy < height {
+                    let (c, wt) = fine(fx, fy);
+                    if wt > 0.0 {
+                        (0..3).for_each(|k| sum[k] += c[k] * wt);
+                        total += wt;
+                    }
+                }
+            }
+            if total > 0.0 {
+                crow[x] = sum.map(|s| s / total);
+                wrow[x] = total;
+            }
+        }
+    });
+    Level { width: w, height: h, colour, weight }
+}
+
+/// Gives the texels of `fine` that have no colour yet the colour of `coarse`, already filled.
+fn fill_level(fine: &mut Level, coarse: &Level) {
+    let w = fine.width;
+    fine.colour.par_chunks_mut(w).zip(fine.weight.par_chunks(w)).enumerate().for_each(|(y, (row, weights))| {
+        for (x, c) in row.iter_mut().enumerate() {
+            if weights[x] == 0.0 {
+                *c = coarse.upsample(x, y);
+            }
+        }
+    });
+}
+
+fn fill_texture(texture: &mut Texture, covered: &[bool], coarse: &Level) {
+    let w = texture.width;
+    texture.rgb.par_chunks_mut(w).zip(covered.par_chunks(w)).enumerate().for_each(|(y, (row, cov))| {
+        for (x, c) in row.iter_mut().enumerate() {
+            if !cov[x] {
+                *c = coarse.upsample(x, y).map(|v| v.round().clamp(0.0, 255.0) as u8);
+            }
+        }
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::testmesh::{midpoint, timed, Rng, Soup};
+    use crate::mesh::Mesh;
+
+    fn uv_mesh(positions: Vec<[f64; 3]>, faces: Vec<[u32; 3]>, uv: Vec<[f64; 2]>) -> UvMesh {
+        let uv_faces = faces.clone();
+        let m = UvMesh { mesh: Mesh::new(positions, faces), uv, uv_faces };
+        m.validate().unwrap();
+        m
+    }
+
+    /// The unit square in the plane z, as two triangles, with the given UV at each corner
+    /// (corners (0,0), (1,0), (1,1), (0,1)).
+    fn square(z: f64, uv: [[f64; 2]; 4]) -> UvMesh {
+        let pos = vec![[0.0, 0.0, z], [1.0, 0.0, z], [1.0, 1.0, z], [0.0, 1.0, z]];
+        uv_mesh(pos, vec![[0, 1, 2], [0, 2, 3]], uv.to_vec())
+    }
+
+    const IDENTITY: [[f64; 2]; 4] = [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]];
+
+    /// A texture of pseudo-random colours: any misplaced texel shows.
+    fn noise(width: usize, height: usize, seed: u64) -> Texture {
+        let mut rng = Rng(seed);
+        let rgb = (0..width * height).map(|_| [0; 3].map(|_: u8| (rng.unit() * 256.0) as u8)).collect();
+        Texture { width, height, rgb }
+    }
+
+    fn max_diff(a: [u8; 3], b: [u8; 3]) -> u8 {
+        (0..3).map(|k| a[k].abs_diff(b[k])).max().unwrap()
+    }
+
+    #[test]
+    fn mirrored_and_rotated_atlases_carry_the_source_texels() {
+        let n = 32;
+        let source = square(0.0, IDENTITY);
+        let tex = noise(n, n, 5);
+        // Mirrored left-right: target texel (x, y) shows point (1 - u, v), source texel (n-1-x, y).
+        let mirrored = square(0.0, [[1.0, 0.0], [0.0, 0.0], [0.0, 1.0], [1.0, 1.0]]);
+        // Rotated a quarter turn: the target's u is the point's y, its v is 1 - x.
+        let rotated = square(0.0, [[0.0, 1.0], [0.0, 0.0], [1.0, 0.0], [1.0, 1.0]]);
+        let want_mirrored = |x: usize, y: usize| tex.texel(n - 1 - x, y);
+        // Target texel (x, y): u = (x+.5)/n = point y, 1 - v = (y+.5)/n = point x... rows of
+        // the source from the top are 1 - point y.
+        let want_rotated = |x: usize, y: usize| tex.texel(y, n - 1 - x);
+        for (target, want) in [(mirrored, &want_mirrored as &dyn Fn(usize, usize) -> [u8; 3]), (rotated, &want_rotated)] {
+            let out = transfer_texture(&target, &source, &tex, n, n);
+            assert!(out.covered.iter().all(|&c| c));
+            for y in 0..n {
+                for x in 0..n {
+                    let got = out.texture.texel(x, y);
+                    assert!(max_diff(got, want(x, y)) <= 1, "texel ({x}, {y}): {got:?} vs {:?}", want(x, y));
+                }
+            }
+        }
+    }
+
+    /// A horizontal red ramp and vertical green ramp: bilinear lookups of it are exact away
+    /// from the border half-texel, so a change of resolution has a known answer.
+    fn gradient(n: usize) -> Texture {
+        let rgb = (0..n * n).map(|i| [(8 * (i % n)) as u8, (8 * (i / n)) as u8, 77]).collect();
+        Texture { width: n, height: n, rgb }
+    }
+
+    /// The gradient's colour at a UV inside its texel centres.
+    fn gradient_at(n: usize, uv: [f64; 2]) -> [f64; 3] {
+        [8.0 * (uv[0] * n as f64 - 0.5), 8.0 * ((1.0 - uv[1]) * n as f64 - 0.5), 77.0]
+    }
+
+    #[test]
+    fn gradient_resampled_at_another_resolution_and_through_an_offset_surface() {
+        let source = square(0.0, IDENTITY);
+        let tex = gradient(32);
+        // Mirrored top-bottom, and lifted off the source plane: the closest point of the
+        // source is straight below.
+        let target = square(0.05, [[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]]);
+        let m = 20;
+        let out = transfer_texture(&target, &source, &tex, m, m);
+        for y in 0..m {
+            for x in 0..m {
+                let (u, v) = ((x as f64 + 0.5) / m as f64, 1.0 - (y as f64 + 0.5) / m as f64);
+                let src_uv = [u, 1.0 - v];
+                let inner = src_uv.iter().all(|&c| (0.5 / 32.0..=1.0 - 0.5 / 32.0).contains(&c));
+                if inner {
+                    let want = gradient_at(32, src_uv).map(|c| c.round() as u8);
+                    assert!(max_diff(out.texture.texel(x, y), want) <= 1, "({x}, {y})");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn coverage_matches_the_uv_area_plus_the_reach_margin() {
+        let n = 200;
+        let pos = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let uv = vec![[0.1, 0.15], [0.87, 0.3], [0.33, 0.81]];
+        let target = uv_mesh(pos.clone(), vec![[0, 1, 2]], uv.clone());
+        let source = uv_mesh(pos, vec![[0, 1, 2]], uv.clone());
+        let out = transfer_texture(&target, &source, &Texture::filled(4, 4, [9, 9, 9]), n, n);
+        let count = out.covered.iter().filter(|&&c| c).count() as f64;
+        // In texels: the triangle grown by a square of half-side REACH (a Minkowski sum).
+        let px: Vec<[f64; 2]> = uv.iter().map(|p| [p[0] * n as f64, p[1] * n as f64]).collect();
+        let area = 0.5 * ((px[1][0] - px[0][0]) * (px[2][1] - px[0][1]) - (px[1][1] - px[0][1]) * (px[2][0] - px[0][0])).abs();
+        let width = |k: usize| px.iter().map(|p| p[k]).fold(f64::MIN, f64::max) - px.iter().map(|p| p[k]).fold(f64::MAX, f64::min);
+        let grown = area + 2.0 * REACH * (width(0) + width(1)) + 4.0 * REACH * REACH;
+        assert!((count - grown).abs() < 0.01 * grown, "{count} texels for {grown}");
+        assert!(out.texture.rgb.iter().zip(&out.covered).all(|(c, &k)| *c == if k { [9; 3] } else { [0; 3] }));
+        // Two triangles tiling the image cover it all.
+        let square = square(0.0, IDENTITY);
+        let out = transfer_texture(&square, &square, &Texture::filled(4, 4, [9, 9, 9]), 13, 7);
+        assert!(out.covered.iter().all(|&c| c));
+    }
+
+    #[test]
+    fn chart_margins_do_not_take_texels_inside_other_charts() {
+        // Two charts side by side, the right one first in face order: texels left of the
+        // boundary belong to the left chart even though the right one's margin reaches them.
+        let pos = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.0]];
+        let source = uv_mesh(pos.clone(), vec![[0, 1, 2], [0, 2, 3]], IDENTITY.to_vec());
+        let tex = gradient(16);
+        let mut pos2 = pos.clone();
+        pos2.extend(pos.iter().map(|p| [p[0] + 10.0, p[1], p[2]]));
+        let faces = vec![[4, 5, 6], [4, 6, 7], [0, 1, 2], [0, 2, 3]];
+        // Left chart: u in [0, 0.5]; right chart: u in [0.5, 1], both full height.
+        let uv = vec![[0.0, 0.0], [0.5, 0.0], [0.5, 1.0], [0.0, 1.0], [0.5, 0.0], [1.0, 0.0], [1.0, 1.0], [0.5, 1.0]];
+        let target = UvMesh { mesh: Mesh::new(pos2, faces), uv, uv_faces: vec![[4, 5, 6], [4, 6, 7], [0, 1, 2], [0, 2, 3]] };
+        target.validate().unwrap();
+        // The right chart lies 10 units off in x: its closest source points are on the
+        // source's right edge, the gradient's last column (red 120). Texel column 7 lies in the
+        // left chart (red 8 * (15 - 0.5) there) and within the right chart's margin.
+        let out = transfer_texture(&target, &source, &tex, 16, 16);
+        for y in 0..16 {
+            assert!(out.texture.texel(7, y)[0].abs_diff(116) <= 1, "left chart at (7, {y})");
+            assert_eq!(out.texture.texel(8, y)[0], 120, "right chart at (8, {y})");
+        }
+        assert!(out.covered.iter().all(|&c| c));
+    }
+
+    #[test]
+    fn degenerate_clipped_and_empty_inputs_do_not_panic() {
+        let source = square(0.0, IDENTITY);
+        let tex = noise(8, 8, 1);
+        // A zero-area UV triangle, and one far outside the image.
+        let pos = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let flat = uv_mesh(pos.clone(), vec![[0, 1, 2]], vec![[0.2, 0.2], [0.4, 0.4], [0.6, 0.6]]);
+        let far = uv_mesh(pos.clone(), vec![[0, 1, 2]], vec![[5.0, 5.0], [6.0, 5.0], [5.0, 1e300]]);
+        for t in [&flat, &far] {
+            let out = transfer_texture(t, &source, &tex, 9, 5);
+            assert!(!out.covered.contains(&true));
+        }
+        // Partly off the image: only the part inside is covered, clipped at the border.
+        let big = uv_mesh(pos, vec![[0, 1, 2]], vec![[-1.0, -1.0], [3.0, -1.0], [-1.0, 3.0]]);
+        let out = transfer_texture(&big, &source, &tex, 9, 5);
+        assert!(out.covered.iter().all(|&c| c));
+        let empty = UvMesh::default();
+        for (t, s) in [(&empty, &source), (&source, &empty)] {
+            let out = transfer_texture(t, s, &tex, 3, 4);
+            assert_eq!((out.texture.rgb.len(), out.covered.contains(&true)), (12, false));
+            assert!(out.texture.rgb.iter().all(|&c| c == [0; 3]));
+        }
+        let one = transfer_texture(&source, &source, &tex, 1, 1);
+        assert_eq!(one.covered, vec![true]);
+    }
+
+    #[test]
+    fn closest_points_and_barycentrics_of_proper_and_degenerate_triangles() {
+        let tri = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]];
+        let (p, d2, w) = closest_on_triangle([0.5, 1.0, 3.0], tri);
+        assert_eq!((p, d2), ([0.5, 1.0, 0.0], 9.0));
+        assert!((w[0] - 0.25).abs() < 1e-12 && (w[1] - 0.25).abs() < 1e-12 && (w[2] - 0.5).abs() < 1e-12);
+        assert_eq!(closest_on_triangle([3.0, 3.0, 0.0], tri).2, [0.0, 0.5, 0.5]);
+        assert_eq!(closest_on_triangle([-1.0, -1.0, 0.0], tri).2, [1.0, 0.0, 0.0]);
+        let line = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
+        let (p, _, w) = closest_on_triangle([0.5, 1.0, 0.0], line);
+        assert_eq!(p, [0.5, 0.0, 0.0]);
+        assert_eq!(interpolate(line, w), p);
+        assert_eq!(closest_on_triangle([1.0, 2.0, 1.0], [[1.0; 3]; 3]).2, [1.0, 0.0, 0.0]);
+        // The bound never exceeds the distance, for proper and degenerate triangles.
+        let mut rng = Rng(17);
+        for t in [tri, line, [[1.0; 3]; 3], [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.3, -2.0, 0.5]]] {
+            let b = Bound::new(t);
+            for _ in 0..1000 {
+                let q = rng.point(-3.0, 3.0);
+                assert!(b.lower(q) <= closest_on_triangle(q, t).1.sqrt() + 1e-12, "{t:?} {q:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn pad_keeps_covered_texels_and_fills_the_rest_within_their_range() {
+        for (w, h) in [(37, 23), (1, 9), (64, 64), (5, 1)] {
+            let mut tex = noise(w, h, 3);
+            let mut rng = Rng(w as u64 * 31 + h as u64);
+            let covered: Vec<bool> = (0..w * h).map(|i| i == w * h / 2 || rng.unit() < 0.2).collect();
+            let before = tex.clone();
+            for (c, &k) in tex.rgb.iter_mut().zip(&covered) {
+                if !k {
+                    *c = [0, 0, 0];
+                }
+            }
+            pad(&mut tex, &covered);
+            let (lo, hi) = covered.iter().zip(&before.rgb).filter(|(&k, _)| k).fold(([255u8; 3], [0u8; 3]), |(lo, hi), (_, c)| {
+                ([0, 1, 2].map(|k| lo[k].min(c[k])), [0, 1, 2].map(|k| hi[k].max(c[k])))
+            });
+            for (i, (&k, c)) in covered.iter().zip(&tex.rgb).enumerate() {
+                if k {
+                    assert_eq!(*c, before.rgb[i]);
+                } else {
+                    assert!((0..3).all(|j| (lo[j]..=hi[j]).contains(&c[j])), "{w}x{h} texel {i}: {c:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn pad_spreads_a_uniform_colour_everywhere() {
+        let (w, h) = (45, 30);
+        let mut tex = Texture::filled(w, h, [0, 0, 0]);
+        let covered: Vec<bool> = (0..w * h).map(|i| (i % w) > 30 && (i / w) < 7).collect();
+        for (c, &k) in tex.rgb.iter_mut().zip(&covered) {
+            if k {
+                *c = [200, 17, 93];
+            }
+        }
+        pad(&mut tex, &covered);
+        assert!(tex.rgb.iter().all(|&c| c == [200, 17, 93]));
+        // Nothing covered: nothing to spread, nothing changes; a single texel spreads anywhere.
+        let mut none = noise(7, 3, 2);
+        let copy = none.clone();
+        pad(&mut none, &[false; 21]);
+        assert_eq!(none, copy);
+        let mut one = Texture::filled(6, 11, [0, 0, 0]);
+        one.rgb[65] = [1, 2, 3];
+        let mut covered = vec![false; 66];
+        covered[65] = true;
+        pad(&mut one, &covered);
+        assert!(one.rgb.iter().all(|&c| c == [1, 2, 3]));
+    }
+
+    #[test]
+    fn pad_gutters_fade_smoothly_to_the_mean_colour() {
+        // A horizontal ramp (0, 4, .., 124) covered on its left half: the gutter on the right
+        // starts near the chart's edge colour, falls without ringing, and ends at the mean (62).
+        let (w, h) = (64, 16);
+        let mut tex = Texture::filled(w, h, [0; 3]);
+        let covered: Vec<bool> = (0..w * h).map(|i| i % w < 32).collect();
+        for (i, c) in tex.rgb.iter_mut().enumerate() {
+            if covered[i] {
+                *c = [(4 * (i % w)) as u8, 0, 0];
+            }
+        }
+        pad(&mut tex, &covered);
+        let row: Vec<i32> = (31..w).map(|x| tex.texel(x, 8)[0] as i32).collect();
+        assert!(row[0] - row[1] < 124 / 4, "jump at the chart edge: {row:?}");
+        assert!(row.windows(2).all(|p| p[1] <= p[0]), "{row:?}");
+        assert_eq!(row[row.len() - 1], 62);
+    }
+
+    /// Lat-long sphere with a UV atlas: `u` around, `v` up, a seam at `u = 0 = 1`, pole fans.
+    /// Returns the mesh and its UVs as a second soup (z = 0), faces in the same order.
+    fn sphere(stacks: u32, slices: u32, radius: impl Fn(f64, f64) -> f64) -> (Soup, Soup) {
+        use std::f64::consts::PI;
+        let (mut pos, mut uv) = (Vec::new(), Vec::new());
+        for i in 0..=stacks {
+            for j in 0..=slices {
+                let (th, ph) = (PI * i as f64 / stacks as f64, 2.0 * PI * j as f64 / slices as f64);
+                let r = radius(th, ph);
+                pos.push([r * th.sin() * ph.cos(), r * th.sin() * ph.sin(), r * th.cos()]);
+                uv.push([j as f64 / slices as f64, 1.0 - i as f64 / stacks as f64, 0.0]);
+            }
+        }
+        let at = |i: u32, j: u32| i * (slices + 1) + j;
+        let mut faces = Vec::new();
+        for i in 0..stacks {
+            for j in 0..slices {
+                let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+                if i > 0 {
+                    faces.push([a, b, d]);
+                }
+                if i + 1 < stacks {
+                    faces.push([b, c, d]);
+                }
+            }
+        }
+        // Positions are duplicated along the seam and at the poles, like the UVs: the same
+        // index serves both, which keeps the test simple.
+        ((pos, faces.clone()), (uv, faces))
+    }
+
+    fn uv_mesh_of((pos, faces): Soup, (uv, uv_faces): Soup, margin: f64) -> UvMesh {
+        let uv = uv.iter().map(|p| [margin + (1.0 - 2.0 * margin) * p[0], margin + (1.0 - 2.0 * margin) * p[1]]).collect();
+        let m = UvMesh { mesh: Mesh::new(pos, faces), uv, uv_faces };
+        m.validate().unwrap();
+        m
+    }
+
+    fn bumpy(th: f64, ph: f64) -> f64 {
+        1.0 + 0.05 * (4.0 * th).sin() * (6.0 * ph).cos()
+    }
+
+    /// Source: a bumpy sphere; target: a coarser one, midpoint-subdivided `levels` times (as
+    /// the codec subdivides its base mesh), so its vertices lie off the source surface.
+    fn sphere_pair(source_size: (u32, u32), base_size: (u32, u32), levels: u32) -> (UvMesh, UvMesh) {
+        let (s, suv) = sphere(source_size.0, source_size.1, bumpy);
+        let (b, buv) = sphere(base_size.0, base_size.1, bumpy);
+        let target = uv_mesh_of(midpoint(&b, levels), midpoint(&buv, levels), 0.02);
+        (target, uv_mesh_of(s, suv, 0.0))
+    }
+
+    #[test]
+    fn same_result_on_one_and_two_threads() {
+        let (target, source) = sphere_pair((30, 60), (10, 20), 2);
+        let tex = noise(64, 32, 9);
+        let run = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let mut out = transfer_texture(&target, &source, &tex, 150, 97);
+                pad(&mut out.texture, &out.covered);
+                out
+            })
+        };
+        let one = run(1);
+        assert!(one.covered.iter().filter(|&&c| c).count() > 150 * 97 * 9 / 10);
+        assert_eq!(one, run(2));
+    }
+
+    /// The transfer done the slow and obvious way: every face tried at every texel, and the
+    /// whole source's Bvh asked for every closest point.
+    fn reference(target: &UvMesh, source: &UvMesh, tex: &Texture, w: usize, h: usize) -> Transferred {
+        let bvh = Bvh::new(&source.mesh.positions, &source.mesh.faces);
+        let mut out = Transferred { texture: Texture::filled(w, h, [0; 3]), covered: vec![false; w * h] };
+        for y in 0..h {
+            for x in 0..w {
+                let mut best: Option<(u64, [f64; 3])> = None;
+                for (f, uvf) in target.uv_faces.iter().enumerate() {
+                    let Some(tri) = UvTriangle::new(uvf.map(|i| target.uv[i as usize]), w, h) else { continue };
+                    let p = texel_centre(x, y);
+                    let found = match tri.inside(p) {
+                        Some(b) => Some((b, 0)),
+                        None => tri.margin(p).map(|(b, d2)| (b, margin_rank(d2))),
+                    };
+                    if let Some((b, rank)) = found {
+                        let key = u64::from(rank) << 32 | f as u64;
+                        if best.map_or(true, |(k, _)| key < k) {
+                            best = Some((key, b));
+                        }
+                    }
+                }
+                let Some((key, b)) = best else { continue };
+                let corners = target.mesh.faces[key as u32 as usize].map(|v| target.mesh.positions[v as usize]);
+                let q = interpolate(corners, b);
+                let s = bvh.closest_point(q).unwrap().triangle;
+                let (_, _, bary) = closest_on_triangle(q, source.mesh.faces[s as usize].map(|v| source.mesh.positions[v as usize]));
+                let uv = source.uv_faces[s as usize].map(|i| source.uv[i as usize]);
+                let uv = [0, 1].map(|k| bary[0] * uv[0][k] + bary[1] * uv[1][k] + bary[2] * uv[2][k]);
+                out.texture.rgb[y * w + x] = tex.sample(uv).map(|c| c.round() as u8);
+                out.covered[y * w + x] = true;
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn same_result_as_the_obvious_way() {
+        let tex = noise(64, 32, 9);
+        let (target, source) = sphere_pair((30, 60), (10, 20), 2);
+        assert_eq!(transfer_texture(&target, &source, &tex, 61, 47), reference(&target, &source, &tex, 61, 47));
+        // A target well off the source (scaled up, and shrunk), with its faces shuffled.
+        for s in [1.5, 0.3] {
+            let mut far = target.clone();
+            far.mesh.positions.iter_mut().for_each(|p| *p = scale(*p, s));
+            let mut rng = Rng(5);
+            for i in (1..far.mesh.faces.len()).rev() {
+                let j = (rng.unit() * (i + 1) as f64) as usize;
+                far.mesh.faces.swap(i, j);
+                far.uv_faces.swap(i, j);
+            }
+            assert_eq!(transfer_texture(&far, &source, &tex, 40, 33), reference(&far, &source, &tex, 40, 33));
+        }
+    }
+
+    /// Transfer and padding at 2048² onto a target of about 1M faces from a 40k-face source,
+    /// on one thread and on all: `cargo test --release -p dynmesh transfer::tests::timing_2048
+    /// -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn timing_2048() {
+        let (target, source) = sphere_pair((101, 200), (63, 124), 3);
+        let tex = noise(2048, 2048, 4);
+        let (t, s) = (&target.mesh, &source.mesh);
+        println!("target {} faces, source {} faces / {} vertices", t.faces.len(), s.faces.len(), s.positions.len());
+        for threads in [1, 1] {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+            pool.install(|| {
+                let (mut out, wall, cpu) = timed(|| transfer_texture(&target, &source, &tex, 2048, 2048));
+                let covered = out.covered.iter().filter(|&&c| c).count() as f64 / out.covered.len() as f64;
+                let share = covered * 100.0;
+                println!("{threads} threads: transfer {wall:.3} s wall, {cpu:.3} s cpu, {share:.1}% covered");
+                let (_, wall, cpu) = timed(|| pad(&mut out.texture, &out.covered));
+                println!("{threads} threads: pad {:.1} ms wall, {:.1} ms cpu", wall * 1e3, cpu * 1e3);
+            });
+        }
+    }
+}
