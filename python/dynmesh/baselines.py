@@ -24,11 +24,13 @@ from .mesh import Mesh
 @dataclass
 class Encoded:
     """A coded sequence: ``payload`` is what ``decode`` takes; ``frame_bytes`` the size of
-    each frame's unit; ``total_bytes`` all bytes of the stream (headers included)."""
+    each frame's unit; ``total_bytes`` all bytes of the stream (headers included), of which
+    ``texture_bytes`` carry textures."""
 
     payload: object
     frame_bytes: list[int]
     total_bytes: int
+    texture_bytes: int = 0
 
 
 class Draco:

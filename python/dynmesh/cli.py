@@ -11,7 +11,7 @@ from pathlib import Path
 
 from tqdm import tqdm
 
-from . import api
+from . import api, texture, video
 from .io import MeshError, read_mesh, write_mesh
 from .sequence import SequenceError, resolve_sequence
 
@@ -46,7 +46,8 @@ def _encoder_options(a) -> dict:
     return dict(qp=a.qp, base_ratio=a.base_ratio, subdiv=a.subdiv, scheme=a.scheme, bits=a.bits,
                 base_bits=a.base_bits, normal_only=not a.all_components, intra_period=a.intra_period,
                 inter=a.inter, rd_slope=a.rd_slope, aq=a.aq, aq_alpha=a.aq_alpha,
-                aq_delta=a.aq_delta, aq_h=a.aq_h)
+                aq_delta=a.aq_delta, aq_h=a.aq_h, texture="auto" if a.texture is None else a.texture,
+                texture_size=a.texture_size, texture_qp=a.texture_qp, texture_codec=a.texture_codec)
 
 
 def cmd_encode(a) -> dict:
@@ -55,13 +56,14 @@ def cmd_encode(a) -> dict:
         result = api.encode_frames(meshes, on_frame=lambda i, s: bar.update(), **_encoder_options(a))
     api.write_bytes_atomic(a.output, result.data)
     frames = [{"frame": i, "input": str(p), **s} for i, (p, s) in enumerate(zip(paths, result.frames))]
-    summary = {"output": str(a.output), "bytes": len(result.data), "frames": frames,
-               "options": _encoder_options(a)}
+    summary = {"output": str(a.output), "bytes": len(result.data), "texture_bytes": result.texture_bytes,
+               "frames": frames, "options": _encoder_options(a)}
     if not a.json:
         print(_table(frames, [("frame", "frame", "d"), ("type", "type", "s"), ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
                               ("displacement_bytes", "disp B", "d"), ("base_faces", "base faces", "d"),
                               ("output_faces", "out faces", "d"), ("seconds", "seconds", ".3f")]))
-        print(f"wrote {a.output}: {len(result.data)} bytes, {len(frames)} frames, "
+        of_texture = f" ({result.texture_bytes} of them texture)" if result.texture_bytes else ""
+        print(f"wrote {a.output}: {len(result.data)} bytes{of_texture}, {len(frames)} frames, "
               f"{8 * len(result.data) / len(frames) * 30 / 1e6:.3f} Mbit/s at 30 fps")
     return summary
 
@@ -95,7 +97,7 @@ def cmd_info(a) -> dict:
         rows = [{"frame": i, **f} for i, f in enumerate(result["frames"])]
         print(_table(rows, [("frame", "frame", "d"), ("type", "type", "s"), ("qp", "qp", "d"),
                             ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
-                            ("displacement_bytes", "disp B", "d")]))
+                            ("displacement_bytes", "disp B", "d"), ("texture_bytes", "texture B", "d")]))
     return result
 
 
@@ -105,8 +107,12 @@ def cmd_metrics(a) -> dict:
     result = api.metrics(refs, decs, peak=a.peak, grid_size=a.grid_size)
     if not a.json:
         rows = [{"frame": i, **f} for i, f in enumerate(result["frames"])]
-        print(_table(rows, [("frame", "frame", "d"), ("d1_psnr", "D1 PSNR", ".3f"), ("d2_psnr", "D2 PSNR", ".3f")]))
-        print(f"mean D1 {result['d1_psnr']:.3f} dB, D2 {result['d2_psnr']:.3f} dB (peak {result['peak']:.6g})")
+        colour = [("y_psnr", "Y PSNR", ".3f"), ("cb_psnr", "Cb PSNR", ".3f"), ("cr_psnr", "Cr PSNR", ".3f")]
+        colour = colour if "y_psnr" in result else []
+        print(_table(rows, [("frame", "frame", "d"), ("d1_psnr", "D1 PSNR", ".3f"), ("d2_psnr", "D2 PSNR", ".3f")] + colour))
+        of_texture = (f", Y {result['y_psnr']:.3f} dB, Cb {result['cb_psnr']:.3f} dB, Cr {result['cr_psnr']:.3f} dB"
+                      if colour else "")
+        print(f"mean D1 {result['d1_psnr']:.3f} dB, D2 {result['d2_psnr']:.3f} dB{of_texture} (peak {result['peak']:.6g})")
     return result
 
 
@@ -253,13 +259,22 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--aq-alpha", type=float, default=d["aq_alpha"], help=f"AQ step factor alpha (default {d['aq_alpha']:g})")
     p.add_argument("--aq-delta", type=float, default=d["aq_delta"], help=f"AQ lattice offset delta, |delta| < 1 (default {d['aq_delta']:g})")
     p.add_argument("--aq-h", type=float, default=d["aq_h"], help=f"AQ valence normalisation h (default {d['aq_h']:g})")
+    t = texture.TEXTURE_DEFAULTS
+    p.add_argument("--texture", action=argparse.BooleanOptionalAction, default=None,
+                   help="code the frames' textures (default: when every frame has UVs and a texture image)")
+    p.add_argument("--texture-size", type=int, default=t["texture_size"],
+                   help=f"side of the texture atlas in texels (default {t['texture_size']})")
+    p.add_argument("--texture-qp", type=int, default=t["texture_qp"], help=f"texture video QP, 0-51 (default {t['texture_qp']})")
+    p.add_argument("--texture-codec", choices=list(video.CODECS), default=t["texture_codec"],
+                   help=f"texture video codec: HEVC (libx265) or AV1 (libsvtav1), 10-bit 4:2:0 (default {t['texture_codec']})")
     _common(p)
     p.set_defaults(run=cmd_encode)
 
     p = sub.add_parser("decode", help="decode a stream into mesh files", description="Decode a .dmsh stream into frame_0000.obj, ...")
     p.add_argument("input")
     p.add_argument("-o", "--output", required=True, help="output directory")
-    p.add_argument("--format", choices=["obj", "ply"], default="obj")
+    p.add_argument("--format", choices=["obj", "ply"], default="obj",
+                   help="obj (with .mtl and .png when the stream is textured) or ply (geometry only)")
     _common(p)
     p.set_defaults(run=cmd_decode)
 

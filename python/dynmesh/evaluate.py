@@ -68,7 +68,7 @@ try:
 except ModuleNotFoundError:  # Python 3.10: the same parser, from PyPI
     import tomli as tomllib
 
-from . import api
+from . import api, texture
 from .baselines import Draco, Encoded
 from .io import read_mesh
 from .mesh import Mesh
@@ -94,7 +94,7 @@ class Dynmesh:
     """The dynmesh codec (all-intra today), through :mod:`dynmesh.api`."""
 
     name = "dynmesh"
-    DEFAULTS = api.DEFAULTS
+    DEFAULTS = {**api.DEFAULTS, **texture.TEXTURE_DEFAULTS}
 
     @staticmethod
     def version() -> str:
@@ -103,7 +103,7 @@ class Dynmesh:
     @staticmethod
     def encode(meshes: list[Mesh], **options) -> Encoded:
         result = api.encode_frames(meshes, **options)
-        return Encoded(result.data, [int(f["bytes"]) for f in result.frames], len(result.data))
+        return Encoded(result.data, [int(f["bytes"]) for f in result.frames], len(result.data), result.texture_bytes)
 
     @staticmethod
     def decode(payload: bytes) -> list[Mesh]:
@@ -395,19 +395,27 @@ def measure(run: Run) -> dict:
         raise RunError(f"run {run.id}: {e}") from None
     n = len(refs)
     bits_per_frame = 8 * enc.total_bytes / n
-    per_frame = [{"frame": i, "file": name, "bytes": b, "d1_psnr": f["d1_psnr"], "d2_psnr": f["d2_psnr"],
-                  "d1_mse": f["d1_mse"], "d2_mse": f["d2_mse"]}
+    per_frame = [{"frame": i, "file": name, "bytes": b, **{k: f[k] for k in _FRAME_FIGURES if k in f}}
                  for i, (name, b, f) in enumerate(zip(run.frame_names(), enc.frame_bytes, m["frames"]))]
+    colour = {k: m[k] for k in COLOUR_FIELDS if k in m}
+    if colour:
+        colour["texture_mbps"] = 8 * enc.texture_bytes / n * run.fps / 1e6
+        colour["geometry_mbps"] = 8 * (enc.total_bytes - enc.texture_bytes) / n * run.fps / 1e6
     return {
         "schema": SCHEMA, "key": run.key(), "sequence": run.sequence.name, "variant": run.variant,
         "codec": run.codec, "codec_version": codec.version(), "rate": run.rate, "options": run.full_options(),
         "frames": n, "peak": m["peak"], "grid_size": run.grid_size, "fps": run.fps,
         "bytes": enc.total_bytes, "bits_per_frame": bits_per_frame, "mbps": bits_per_frame * run.fps / 1e6,
-        "d1_psnr": m["d1_psnr"], "d2_psnr": m["d2_psnr"],
+        "d1_psnr": m["d1_psnr"], "d2_psnr": m["d2_psnr"], **colour,
         "encode_s_per_frame": (t1 - t0) / n, "decode_s_per_frame": (t2 - t1) / n,
         "per_frame": per_frame,
     }
 
+
+#: Texture PSNRs a run of a textured sequence adds to its record, beside the rates of
+#: geometry and texture apart (``geometry_mbps``, ``texture_mbps``).
+COLOUR_FIELDS = ("y_psnr", "cb_psnr", "cr_psnr")
+_FRAME_FIGURES = ("d1_psnr", "d2_psnr", "d1_mse", "d2_mse") + COLOUR_FIELDS
 
 #: Record fields that are measured times: they differ between otherwise identical runs.
 TIMING_FIELDS = ("encode_s_per_frame", "decode_s_per_frame")
@@ -519,10 +527,12 @@ def write_summary(exp: Experiment, records: list[dict], out: Path) -> None:
     """Writes out/results.json and out/results.csv (each to a temporary name, then renamed)."""
     _save_json(out / "results.json", results_document(exp, records))
     buf = io.StringIO()
-    w = csv.DictWriter(buf, CSV_FIELDS, lineterminator="\n")
+    extra = [k for k in COLOUR_FIELDS + ("geometry_mbps", "texture_mbps") if any(k in r for r in records)]
+    fields = CSV_FIELDS[:-4] + extra + CSV_FIELDS[-4:]
+    w = csv.DictWriter(buf, fields, lineterminator="\n")
     w.writeheader()
     for r in records:
-        w.writerow({k: json.dumps(r[k], sort_keys=True) if k == "options" else _csv_value(r[k]) for k in CSV_FIELDS})
+        w.writerow({k: json.dumps(r[k], sort_keys=True) if k == "options" else _csv_value(r.get(k, "")) for k in fields})
     api.write_bytes_atomic(out / "results.csv", buf.getvalue().encode())
 
 

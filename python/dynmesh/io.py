@@ -27,7 +27,7 @@ import numpy as np
 
 from .mesh import Mesh
 
-__all__ = ["MeshError", "MeshWarning", "read_mesh", "write_mesh"]
+__all__ = ["MeshError", "MeshWarning", "read_mesh", "write_mesh", "read_image", "write_image"]
 
 
 class MeshError(ValueError):
@@ -84,7 +84,8 @@ def write_mesh(path: str | os.PathLike, mesh: Mesh, *, ascii: bool = False) -> N
 
     OBJ positions and UVs round-trip float64 exactly (shortest repr); UVs are written
     with their own indices (``f a/b``), and a texture becomes ``<stem>.mtl`` beside the
-    file referencing the texture's file name (the image is not copied). PLY is binary
+    file referencing the texture's file name (the image is not copied). A mesh carrying
+    texture pixels (``image``) gets them written as ``<stem>.png``, referenced instead. PLY is binary
     little endian unless ``ascii``. Each file is written to a temporary file in the same
     directory and renamed into place, so a failure never leaves a partial file.
     Raises MeshError for an unknown extension or an invalid mesh (non-finite values,
@@ -96,6 +97,30 @@ def write_mesh(path: str | os.PathLike, mesh: Mesh, *, ascii: bool = False) -> N
         raise MeshError(path, f"unknown mesh format {path.suffix!r} (expected .obj or .ply)")
     _check_writable(path, mesh)
     writer(path, mesh, ascii)
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """A texture image (PNG, JPEG, anything Pillow reads) as (H, W, 3) uint8 RGB, rows from
+    the top. Raises MeshError naming the file when it cannot be read."""
+    from PIL import Image, UnidentifiedImageError
+
+    path = Path(path)
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
+    except (OSError, UnidentifiedImageError, ValueError) as e:
+        raise MeshError(path, f"cannot read texture image: {e}") from None
+
+
+def write_image(path: str | os.PathLike, image: np.ndarray) -> None:
+    """Writes an (H, W, 3) uint8 RGB image as PNG, atomically."""
+    import io as _io
+
+    from PIL import Image
+
+    buf = _io.BytesIO()
+    Image.fromarray(np.ascontiguousarray(image, np.uint8), "RGB").save(buf, format="PNG", compress_level=1)
+    _atomic_write(Path(path), [buf.getvalue()])
 
 
 # --------------------------------------------------------------------------- shared helpers
@@ -899,9 +924,13 @@ def _format_rows(template: str, values: np.ndarray) -> Iterator[bytes]:
 
 def _write_obj(path: Path, mesh: Mesh, ascii: bool) -> None:
     material = None
-    if mesh.texture is not None:
+    texture = mesh.texture
+    if mesh.image is not None:
+        texture = path.with_suffix(".png")
+        write_image(texture, mesh.image)
+    if texture is not None:
         material = path.with_suffix(".mtl")
-        texture_name = Path(mesh.texture).name
+        texture_name = Path(texture).name
         mtl = f"newmtl material0\nKa 1 1 1\nKd 1 1 1\nKs 0 0 0\nmap_Kd {texture_name}\n"
         _atomic_write(material, [mtl.encode("utf-8")])
     _atomic_write(path, _obj_chunks(path, mesh, material))

@@ -18,6 +18,8 @@ class Mesh:
     uv_faces:  optional (M, 3) int64 indices into ``uvs`` per triangle corner; OBJ keeps
                positions and UVs in separate index lists and so does this class.
     texture:   optional path of the texture image (from the OBJ's material).
+    image:     optional (H, W, 3) uint8 RGB texture pixels, rows from the top (a decoded
+               frame's texture; writers save it as PNG beside the mesh).
     """
 
     positions: np.ndarray
@@ -25,6 +27,7 @@ class Mesh:
     uvs: np.ndarray | None = None
     uv_faces: np.ndarray | None = None
     texture: Path | None = None
+    image: np.ndarray | None = None
     metadata: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:

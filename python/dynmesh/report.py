@@ -30,6 +30,19 @@ import numpy as np
 __all__ = ["bd_rate", "bd_rows", "rd_points", "plot_rd", "markdown", "write_report"]
 
 METRICS = (("d1_psnr", "D1"), ("d2_psnr", "D2"))
+#: Added when the runs measured textures: BD-rates on total rate against luma PSNR.
+COLOUR_METRICS = (("y_psnr", "Y"),)
+
+
+def metrics_of(results: dict) -> tuple[tuple[str, str], ...]:
+    """(record key, label) of every PSNR the report compares: D1 and D2, and Y when every
+    run measured texture."""
+    textured = results["runs"] and all("y_psnr" in r for r in results["runs"])
+    return METRICS + (COLOUR_METRICS if textured else ())
+
+
+def _labels(results: dict) -> list[str]:
+    return [label.lower() for _, label in metrics_of(results)]
 
 
 def rd_points(results: dict, sequence: str, variant: str) -> list[dict]:
@@ -102,7 +115,7 @@ def bd_rows(results: dict) -> list[dict]:
         for var in tests:
             pts = rd_points(results, seq, var)
             row = {"sequence": seq, "variant": var}
-            for key, label in METRICS:
+            for key, label in metrics_of(results):
                 bd = bd_rate([(r["mbps"], r[key]) for r in ref], [(r["mbps"], r[key]) for r in pts])
                 row[f"{label.lower()}_bd"], row[f"{label.lower()}_note"] = bd["bd_rate"], bd["note"]
             for key, short in (("encode_s_per_frame", "enc"), ("decode_s_per_frame", "dec")):
@@ -112,7 +125,7 @@ def bd_rows(results: dict) -> list[dict]:
     for var in tests:
         mine = [r for r in rows if r["variant"] == var]
         avg = {"sequence": "Average", "variant": var}
-        for m in ("d1", "d2"):
+        for m in _labels(results):
             vals = [r[f"{m}_bd"] for r in mine]
             ok = [v for v in vals if v is not None]
             avg[f"{m}_bd"] = float(np.mean(ok)) if ok else None
@@ -132,7 +145,7 @@ def plot_rd(results: dict, sequence: str, metric: str, path: str | os.PathLike) 
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    label = dict(METRICS)[metric]
+    label = dict(METRICS + COLOUR_METRICS)[metric]
     fig = Figure(figsize=(6.4, 4.4), dpi=100)
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
@@ -185,31 +198,32 @@ def bd_markdown(results: dict, rows: list[dict]) -> str:
     """
     anchor = results["anchor"]
     tests = [v["name"] for v in results["variants"] if v["name"] != anchor]
+    labels = _labels(results)
     head = ["Sequence"]
     for v in tests:
-        head += [f"{v} D1", f"{v} D2", f"{v} enc", f"{v} dec"]
-    head += ["best D1", "best D2"]
+        head += [f"{v} {m.upper()}" for m in labels] + [f"{v} enc", f"{v} dec"]
+    head += [f"best {m.upper()}" for m in labels]
     body, notes = [], []
     for seq in [s["name"] for s in results["sequences"]] + ["Average"]:
         mine = {r["variant"]: r for r in rows if r["sequence"] == seq}
         cells = [f"**{seq}**" if seq == "Average" else seq]
         best = {}
-        for m in ("d1", "d2"):
+        for m in labels:
             vals = {v: mine[v][f"{m}_bd"] for v in tests if mine[v][f"{m}_bd"] is not None}
             winner = min(vals, key=vals.get) if vals else None
             best[m] = winner if winner is not None and vals[winner] < 0 else anchor
         for v in tests:
             r = mine[v]
-            for m in ("d1", "d2"):
+            for m in labels:
                 text = _pct(r[f"{m}_bd"])
                 if r[f"{m}_note"]:
                     notes.append(f"{seq}, {v}, {m.upper()}: {r[f'{m}_note']}")
                     text += f" [{len(notes)}]"
                 cells.append(f"**{text}**" if best[m] == v else text)
             cells += [_ratio(r["enc_ratio"]), _ratio(r["dec_ratio"])]
-        cells += [f"**{best['d1']}**", f"**{best['d2']}**"]
+        cells += [f"**{best[m]}**" for m in labels]
         body.append(cells)
-    out = _md_table(head, body, "l" + "r" * (len(head) - 3) + "ll")
+    out = _md_table(head, body, "l" + "r" * (len(head) - 1 - len(labels)) + "l" * len(labels))
     out += "\n\n" + swapped_markdown(results, rows)
     if notes:
         out += "\n\n" + "  \n".join(f"[{i}] {n}" for i, n in enumerate(notes, 1))
@@ -228,7 +242,7 @@ def swapped_markdown(results: dict, rows: list[dict]) -> str:
     for v in [v["name"] for v in results["variants"] if v["name"] != anchor]:
         mine = [r for r in rows if r["variant"] == v and r["sequence"] != "Average"]
         parts = []
-        for m in ("d1", "d2"):
+        for m in _labels(results):
             vals = [100 * (1 / (1 + r[f"{m}_bd"] / 100) - 1) for r in mine if r[f"{m}_bd"] is not None]
             parts.append(f"{m.upper()} {_pct(float(np.mean(vals)) if vals else None)}")
         lines.append(f"Read the other way, {anchor} against {v}: {', '.join(parts)} (mean over sequences).")
@@ -236,15 +250,22 @@ def swapped_markdown(results: dict, rows: list[dict]) -> str:
 
 
 def rd_markdown(results: dict, sequence: str) -> str:
-    """The measured points of one sequence: every variant and rate point."""
+    """The measured points of one sequence: every variant and rate point (with texture
+    PSNRs and the geometry and texture rates apart when the runs measured texture)."""
+    textured = len(metrics_of(results)) > len(METRICS)
+    colour = [("geometry_mbps", "geometry Mbit/s", ".3f"), ("texture_mbps", "texture Mbit/s", ".3f"),
+              ("y_psnr", "Y PSNR (dB)", ".2f"), ("cb_psnr", "Cb PSNR (dB)", ".2f"),
+              ("cr_psnr", "Cr PSNR (dB)", ".2f")] if textured else []
     rows = []
     for v in results["variants"]:
         for r in rd_points(results, sequence, v["name"]):
             rows.append([v["name"], r["rate"], f"{r['bytes'] / r['frames']:.0f}", f"{r['mbps']:.3f}",
-                         f"{r['d1_psnr']:.2f}", f"{r['d2_psnr']:.2f}", f"{1000 * r['encode_s_per_frame']:.1f}",
-                         f"{1000 * r['decode_s_per_frame']:.1f}"])
-    return _md_table(["variant", "rate", "bytes/frame", "Mbit/s", "D1 PSNR (dB)", "D2 PSNR (dB)", "enc ms/frame",
-                      "dec ms/frame"], rows, "llrrrrrr")
+                         f"{r['d1_psnr']:.2f}", f"{r['d2_psnr']:.2f}"]
+                        + [format(r[k], f) for k, _, f in colour]
+                        + [f"{1000 * r['encode_s_per_frame']:.1f}", f"{1000 * r['decode_s_per_frame']:.1f}"])
+    head = (["variant", "rate", "bytes/frame", "Mbit/s", "D1 PSNR (dB)", "D2 PSNR (dB)"] + [h for _, h, _ in colour]
+            + ["enc ms/frame", "dec ms/frame"])
+    return _md_table(head, rows, "ll" + "r" * (len(head) - 2))
 
 
 def conditions_markdown(results: dict) -> str:
@@ -309,7 +330,10 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
         "per sequence in *Conditions* below.",
         "- **Sequence figure**: the mean over frames of the per-frame PSNR (not the PSNR of the mean MSE).",
         f"- **Rate**: every byte of the stream (dynmesh: header and all frame units; Draco: the sum of its "
-        f"per-frame buffers), as Mbit/s at {results['fps']:g} frames per second. Geometry only.",
+        f"per-frame buffers), as Mbit/s at {results['fps']:g} frames per second"
+        + (", texture included (geometry and texture rates apart in the tables); texture PSNR: colour sampled "
+           "bilinearly at the same grid points, BT.709 YCbCr in [0, 1], peak 1, symmetric; Y BD-rates are on the "
+           "total rate." if len(metrics_of(results)) > len(METRICS) else ". Geometry only."),
         "- **Draco** codes each frame as an independent mesh (DracoPy, positions quantized over the frame's own box); "
         "it reorders and merges vertices, and the harness measures exactly what Draco decodes, like any decoder "
         "output.",
@@ -327,7 +351,7 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
     ]
     for s in results["sequences"]:
         parts += ["", f"### {s['name']}", ""]
-        pics = [f"![{s['name']} {label}]({images[(s['name'], key)]})" for key, label in METRICS
+        pics = [f"![{s['name']} {label}]({images[(s['name'], key)]})" for key, label in metrics_of(results)
                 if (s["name"], key) in images]
         if pics:
             parts += [" ".join(pics), ""]
@@ -357,7 +381,7 @@ def write_report(results: dict, report_dir: str | os.PathLike, report_file: str 
     img_dir = report_dir / Path(report_file).stem / results["experiment"]
     images = {}
     for s in results["sequences"]:
-        for key, label in METRICS:
+        for key, label in metrics_of(results):
             png = plot_rd(results, s["name"], key, img_dir / f"rd_{s['name']}_{label.lower()}.png")
             images[(s["name"], key)] = png.relative_to(report_dir).as_posix()
     section = _demoted(markdown(results, images, command))

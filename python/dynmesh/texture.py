@@ -1,0 +1,217 @@
+"""The texture stage: atlas, texture transfer and video per group of frames, and back.
+
+A *texture group* runs from an intra frame to the frame before the next intra frame. Its
+intra frame gets an atlas made on its decoded base mesh (``atlas``); every frame of the
+group has that base mesh's connectivity (predicted frames move it), so all of them share
+the atlas, subdivided with the mesh (``_core.subdivide_uv``). Each frame's input texture is
+transferred onto the reconstructed mesh in that atlas (``_core.transfer_texture``, padded),
+and the group's images become one video (``video``). The stream carries all of it in one
+texture unit after the group's intra frame (``docs/bitstream.md``, texture unit):
+
+    u8 version (1), u8 codec (index in ``video.CODECS``), u16 width, u16 height,
+    u8 uv_bits, u32 frames in the group, u32 + bytes coded atlas, u32 + bytes video
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import _core, atlas, video
+from .mesh import Mesh
+
+#: Defaults of the texture options (``encode_frames`` takes them beside the geometry ones).
+TEXTURE_DEFAULTS: dict = {"texture_size": 2048, "texture_qp": 32, "texture_codec": "hevc"}
+
+_FIXED = struct.Struct("<BBHHBI")
+_VERSION = 1
+
+
+@dataclass
+class GroupHeader:
+    codec: str
+    width: int
+    height: int
+    uv_bits: int
+    frames: int
+    atlas: bytes
+    video: bytes
+
+
+def pack_group(g: GroupHeader) -> bytes:
+    """The texture unit payload of a group."""
+    fixed = _FIXED.pack(_VERSION, video.CODECS.index(g.codec), g.width, g.height, g.uv_bits, g.frames)
+    return b"".join([fixed, struct.pack("<I", len(g.atlas)), g.atlas, struct.pack("<I", len(g.video)), g.video])
+
+
+def unpack_group(data: bytes) -> GroupHeader:
+    """Parses a texture unit payload; raises ValueError naming what is wrong."""
+    if len(data) < _FIXED.size:
+        raise ValueError("texture unit is truncated")
+    version, codec, width, height, uv_bits, frames = _FIXED.unpack_from(data)
+    if version != _VERSION:
+        raise ValueError(f"texture unit version {version} is not supported")
+    if codec >= len(video.CODECS):
+        raise ValueError(f"unknown texture codec {codec}")
+    if not (16 <= width <= 16384 and 16 <= height <= 16384 and width % 2 == 0 and height % 2 == 0):
+        raise ValueError(f"texture size {width} x {height} is out of range")
+    if not 1 <= uv_bits <= 16 or frames == 0:
+        raise ValueError("texture unit has invalid UV bits or frame count")
+    blocks, pos = [], _FIXED.size
+    for what in ("atlas", "video"):
+        if pos + 4 > len(data):
+            raise ValueError(f"texture unit is truncated before its {what}")
+        (n,) = struct.unpack_from("<I", data, pos)
+        if pos + 4 + n > len(data):
+            raise ValueError(f"texture unit's {what} is truncated")
+        blocks.append(bytes(data[pos + 4 : pos + 4 + n]))
+        pos += 4 + n
+    if pos != len(data):
+        raise ValueError("unexpected bytes at the end of the texture unit")
+    return GroupHeader(video.CODECS[codec], width, height, uv_bits, frames, *blocks)
+
+
+def check_options(options: dict) -> dict:
+    """The texture options with defaults filled in; raises ValueError for a bad one."""
+    opts = {**TEXTURE_DEFAULTS, **options}
+    size = opts["texture_size"]
+    if not isinstance(size, int) or not (16 <= size <= 16384) or size % 2:
+        raise ValueError(f"texture_size must be an even integer from 16 to 16384, not {size!r}")
+    if opts["texture_codec"] not in video.CODECS:
+        raise ValueError(f"texture_codec must be one of {', '.join(video.CODECS)}, not {opts['texture_codec']!r}")
+    qp = opts["texture_qp"]
+    if not isinstance(qp, int) or not 0 <= qp <= 51:
+        raise ValueError(f"texture_qp must be an integer from 0 to 51, not {qp!r}")
+    return opts
+
+
+@dataclass
+class _Group:
+    first: int
+    atlas: bytes
+    uv: np.ndarray
+    uv_faces: np.ndarray
+    images: list = field(default_factory=list)
+
+
+class TextureEncoder:
+    """Builds the texture units of a stream frame by frame (see the module documentation).
+
+    Call ``add`` after each geometry frame; it returns ``(frame index, texture unit)`` for a
+    group that the frame closed, and ``finish`` the last one. ``keep_images`` keeps the
+    decoded texture of every frame (``images``), which costs decoding each video once."""
+
+    def __init__(self, subdiv: int, options: dict, keep_images: bool = False):
+        opts = check_options(options)
+        self.size, self.qp, self.codec = opts["texture_size"], opts["texture_qp"], opts["texture_codec"]
+        self.subdiv = subdiv
+        self.keep_images = keep_images
+        self.images: list[np.ndarray] = []
+        self.uvs: list[tuple[np.ndarray, np.ndarray]] = []
+        self._group: _Group | None = None
+        self._frame = 0
+
+    def add(self, frame_type: str, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> tuple[int, bytes] | None:
+        closed = None
+        if frame_type == "I" or self._group is None:
+            closed = self._close()
+            data, uv_faces, uv = atlas.coded_atlas(base.positions, base.faces, self.size)
+            uv, uv_faces = _core.subdivide_uv(uv, uv_faces, self.subdiv)
+            self._group = _Group(self._frame, data, uv, uv_faces)
+        g = self._group
+        texture, _ = _core.transfer_texture(
+            reconstruction.positions, reconstruction.faces, g.uv, g.uv_faces,
+            source.positions, source.faces, source.uvs, source.uv_faces, image, self.size, self.size)
+        g.images.append(texture)
+        self.uvs.append((g.uv, g.uv_faces))
+        self._frame += 1
+        return closed
+
+    def finish(self) -> tuple[int, bytes] | None:
+        return self._close()
+
+    def _close(self) -> tuple[int, bytes] | None:
+        g, self._group = self._group, None
+        if g is None:
+            return None
+        data = video.encode_video(g.images, self.codec, self.qp)
+        if self.keep_images:
+            self.images.extend(video.decode_video(data, self.codec))
+        header = GroupHeader(self.codec, self.size, self.size, atlas.UV_BITS, len(g.images), g.atlas, data)
+        return g.first, pack_group(header)
+
+
+@dataclass
+class _OpenGroup:
+    first: int
+    frames: int
+    uv: np.ndarray
+    uv_faces: np.ndarray
+    images: object  # iterator over the decoded video
+    decoded: int = 0  # images taken from the iterator so far
+    image: np.ndarray | None = None  # the last one taken
+
+
+class TextureDecoder:
+    """Gives each decoded frame its UVs and texture image. Decoding in order decodes each
+    group's video once; going back inside a group decodes its video again from the start."""
+
+    def __init__(self, decoder, subdiv: int):
+        self._dec = decoder
+        self._subdiv = subdiv
+        self._open: _OpenGroup | None = None
+
+    def textured(self) -> bool:
+        """Whether the stream carries textures (its first frame has a texture unit)."""
+        return self._dec.frame_count > 0 and self._dec.texture_payload(0) is not None
+
+    def group_start(self, index: int) -> int:
+        """The first frame of the texture group of frame ``index``."""
+        for f in range(index, -1, -1):
+            if self._dec.texture_payload(f) is not None:
+                return f
+        raise ValueError(f"frame {index}: no texture unit before it in a textured stream")
+
+    def texture_of(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(uv, uv_faces, image)`` of frame ``index``, whose geometry was decoded last.
+        Raises ValueError when the texture data is corrupt."""
+        first = self.group_start(index)
+        g = self._open
+        if g is None or g.first != first or g.decoded > index - first + 1:
+            g = self._open = self._opened(first)
+        if index - first >= g.frames:
+            raise ValueError(f"frame {index}: beyond the {g.frames} frames of its texture group")
+        while g.decoded <= index - first:
+            g.image = next(g.images, None)
+            if g.image is None:
+                raise ValueError(f"frame {index}: the texture video ends early")
+            g.decoded += 1
+        return g.uv, g.uv_faces, g.image
+
+    def _opened(self, first: int) -> _OpenGroup:
+        payload, offset = self._dec.texture_payload(first)
+        try:
+            header = unpack_group(payload)
+        except ValueError as e:
+            raise ValueError(f"frame {first}: {e} (texture unit at byte {offset})") from None
+        end = next((f for f in range(first + 1, self._dec.frame_count) if self._dec.texture_payload(f) is not None),
+                   self._dec.frame_count)
+        if header.frames != end - first:
+            raise ValueError(f"frame {first}: texture unit claims {header.frames} frames, its group has {end - first}")
+        last = self._dec.last_base()
+        if last is None:
+            raise ValueError(f"frame {first}: texture decoded before geometry")
+        # Every frame of the group has the intra frame's base connectivity, but only the
+        # intra frame's own positions are those the atlas was coded on.
+        _, (positions, faces) = last if last[0] == first else self._base_of(first)
+        uv_faces, uv = atlas.decoded_atlas(header.atlas, positions, faces, header.uv_bits)
+        uv, uv_faces = _core.subdivide_uv(uv, uv_faces, self._subdiv)
+        return _OpenGroup(first, header.frames, uv, uv_faces, video.decode_video(header.video, header.codec))
+
+    def _base_of(self, index: int):
+        """Decodes frame ``index`` for its base mesh (the decoder keeps one frame's state, so
+        the caller's frame is decoded again after this)."""
+        self._dec.decode_frame(index)
+        return self._dec.last_base()

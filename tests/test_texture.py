@@ -1,0 +1,201 @@
+"""Textured sequences: atlas, texture transfer, video, colour metrics, and their stream."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import dynmesh
+from dynmesh import _core, api, texture, video
+from dynmesh.cli import main
+from dynmesh.io import read_image, read_mesh, write_image, write_mesh
+from dynmesh.mesh import Mesh
+from dynmesh.synth import synth_sequence
+
+from conftest import shared_sequence, wobbly_sequence
+
+SIZE = 256  # atlas side in the tests: small, so a test sequence codes in a second or two
+
+
+def checker_image(size: int = 128, seed: int = 0) -> np.ndarray:
+    """A smooth colour field with a coarse checker on top: something a transfer can get wrong."""
+    y, x = np.mgrid[0:size, 0:size] / size
+    rng = np.random.default_rng(seed)
+    phase = rng.uniform(0, 2 * np.pi, 3)
+    rgb = [0.5 + 0.4 * np.sin(2 * np.pi * (x + 0.7 * y) + p) for p in phase]
+    check = ((np.floor(x * 8) + np.floor(y * 8)) % 2) * 0.15
+    return np.clip(np.stack(rgb, -1) * 255 * (0.85 + check[..., None]), 0, 255).astype(np.uint8)
+
+
+def with_spherical_uvs(m: Mesh, image: np.ndarray) -> Mesh:
+    """``m`` with per-vertex UVs from the direction of each vertex around the mesh's centre."""
+    d = m.positions - m.positions.mean(axis=0)
+    d /= np.linalg.norm(d, axis=1, keepdims=True) + 1e-12
+    uv = np.stack([0.5 + np.arctan2(d[:, 1], d[:, 0]) / (2 * np.pi), np.arccos(np.clip(d[:, 2], -1, 1)) / np.pi], 1)
+    return Mesh(m.positions, m.faces, uvs=uv, uv_faces=m.faces.copy(), image=image)
+
+
+@pytest.fixture(scope="module")
+def textured_sequence() -> list[Mesh]:
+    image = checker_image()
+    return [with_spherical_uvs(m, image) for m in wobbly_sequence(3, rings=16, segments=24)]
+
+
+@pytest.fixture(scope="module")
+def changing_textured_sequence() -> list[Mesh]:
+    image = checker_image(seed=1)
+    return [with_spherical_uvs(m, image) for m in synth_sequence(frames=3, resolution=32)]
+
+
+@pytest.fixture(scope="module")
+def coded(textured_sequence):
+    return api.encode_frames(textured_sequence, keep_reconstructions=True, texture_size=SIZE, texture_qp=22)
+
+
+def test_decoder_reproduces_the_textured_reconstruction_bit_for_bit(coded):
+    decoded = list(api.decode(coded.data))
+    assert len(decoded) == len(coded.reconstructions)
+    for r, d in zip(coded.reconstructions, decoded):
+        assert np.array_equal(r.positions, d.positions) and np.array_equal(r.faces, d.faces)
+        assert np.array_equal(r.uvs, d.uvs) and np.array_equal(r.uv_faces, d.uv_faces)
+        assert d.image.shape == (SIZE, SIZE, 3) and d.image.dtype == np.uint8
+        assert np.array_equal(r.image, d.image)
+
+
+def test_predicted_frames_inherit_the_atlas_and_carry_no_texture_unit(coded):
+    types = [f["type"] for f in coded.frames]
+    assert types[0] == "I" and "P" in types, types
+    frames = api.info(coded.data)["frames"]
+    decoded = list(api.decode(coded.data))
+    for i, (t, f) in enumerate(zip(types, frames)):
+        assert (f["texture_bytes"] > 0) == (t == "I"), (i, t, f)
+        if t == "P":
+            assert np.array_equal(decoded[i].uv_faces, decoded[i - 1].uv_faces)
+            assert np.array_equal(decoded[i].uvs, decoded[i - 1].uvs)
+    assert coded.texture_bytes == sum(f["texture_bytes"] + 9 for f in frames if f["texture_bytes"])
+
+
+def test_reconstructed_uvs_lie_in_the_atlas_and_cover_every_face(coded):
+    r = coded.reconstructions[0]
+    assert r.uv_faces.shape == r.faces.shape
+    assert r.uvs.min() >= 0 and r.uvs.max() <= 1
+    assert r.uv_faces.max() < len(r.uvs)
+
+
+def test_texture_psnr_rises_with_rate_and_is_high_at_the_top(textured_sequence):
+    figures = []
+    for qp in (44, 30, 18):
+        result = api.encode_frames(textured_sequence, keep_reconstructions=True, texture_size=SIZE, texture_qp=qp)
+        m = api.metrics(textured_sequence, result.reconstructions)
+        figures.append((result.texture_bytes, m["y_psnr"], m["cb_psnr"], m["cr_psnr"]))
+    rates, luma = [f[0] for f in figures], [f[1] for f in figures]
+    assert rates == sorted(rates) and luma == sorted(luma), figures
+    assert luma[-1] > 28, figures
+    assert all(np.isfinite(f[2]) and np.isfinite(f[3]) for f in figures)
+
+
+def test_changing_topology_keeps_the_atlas_through_anchor_frames(changing_textured_sequence):
+    result = api.encode_frames(changing_textured_sequence, keep_reconstructions=True, texture_size=SIZE)
+    decoded = list(api.decode(result.data))
+    for r, d in zip(result.reconstructions, decoded):
+        assert np.array_equal(r.image, d.image) and np.array_equal(r.uvs, d.uvs)
+    m = api.metrics(changing_textured_sequence, decoded)
+    assert m["y_psnr"] > 20
+
+
+def test_colour_metric_of_identical_textured_meshes_is_top_and_of_a_shifted_texture_matches_the_offset(textured_sequence):
+    m = textured_sequence[0]
+    same = api.metrics(m, m)
+    assert same["y_psnr"] > 90 or same["y_psnr"] == float("inf")
+    brighter = Mesh(m.positions, m.faces, uvs=m.uvs, uv_faces=m.uv_faces,
+                    image=np.clip(m.image.astype(int) + 10, 0, 255).astype(np.uint8))
+    # +10 on every channel of colours that never clip is +10/255 in Y and nothing in Cb, Cr.
+    assert m.image.max() <= 245
+    shifted = api.metrics(m, brighter)
+    assert shifted["y_psnr"] == pytest.approx(20 * np.log10(255 / 10), abs=0.05)
+    assert shifted["cb_psnr"] > 60 and shifted["cr_psnr"] > 60
+
+
+def test_untextured_input_gives_a_stream_without_texture_units(sequence):
+    result = api.encode_frames(sequence)
+    assert result.texture_bytes == 0
+    assert all(f["texture_bytes"] == 0 for f in api.info(result.data)["frames"])
+    assert all(d.image is None for d in api.decode(result.data))
+
+
+def test_texture_can_be_switched_off(textured_sequence):
+    result = api.encode_frames(textured_sequence, texture=False)
+    assert result.texture_bytes == 0
+
+
+@pytest.mark.parametrize("options", [{"texture_qp": 60}, {"texture_size": 100.5}, {"texture_size": 17},
+                                     {"texture_codec": "mpeg2"}, {"texture": "sometimes"}])
+def test_bad_texture_options_raise_value_error(options, textured_sequence):
+    with pytest.raises(ValueError):
+        api.encode_frames(textured_sequence, **options)
+
+
+def test_texture_on_untextured_input_is_refused(sequence):
+    with pytest.raises(ValueError, match="UVs and a texture"):
+        api.encode_frames(sequence, texture=True)
+
+
+def test_corrupt_texture_data_is_a_decode_error(coded):
+    data = coded.data
+    dec = _core.Decoder(data)
+    payload, offset = dec.texture_payload(0)
+    # A flipped byte fails the unit's CRC.
+    broken = bytearray(data)
+    broken[offset + len(payload) // 2] ^= 0x40
+    with pytest.raises(api.DecodeError):
+        list(api.decode(bytes(broken)))
+    # A unit with a valid CRC around damaged content: truncated video, garbage atlas, bad size.
+    group = texture.unpack_group(payload)
+    for bad in (texture.GroupHeader(**{**group.__dict__, "video": group.video[: len(group.video) // 3]}),
+                texture.GroupHeader(**{**group.__dict__, "atlas": bytes(len(group.atlas))}),
+                texture.GroupHeader(**{**group.__dict__, "frames": 99})):
+        unit = _core.texture_unit(texture.pack_group(bad))
+        start = offset - 5  # unit type byte and length before the payload
+        end = offset + len(payload) + 4
+        stream = data[:start] + unit + data[end:]
+        with pytest.raises(api.DecodeError):
+            list(api.decode(stream))
+    for cut in (0, 5, len(payload) - 1):
+        with pytest.raises(ValueError):
+            texture.unpack_group(payload[:cut])
+
+
+def test_video_round_trip_of_colour_is_close():
+    image = checker_image(128)
+    moved = np.roll(image, 3, axis=1)
+    for codec in video.CODECS:
+        out = list(video.decode_video(video.encode_video([image, moved], codec, 10), codec))
+        assert len(out) == 2
+        # Most of the error is 4:2:0 chroma on the checker's edges.
+        assert np.abs(out[0].astype(int) - image).mean() < 4, codec
+        assert np.abs(out[1].astype(int) - moved).mean() < 4, codec
+
+
+def test_obj_with_texture_round_trips_through_the_command_line(tmp_path, textured_sequence):
+    src = tmp_path / "in"
+    src.mkdir()
+    write_image(src / "skin.png", textured_sequence[0].image)
+    for i, m in enumerate(textured_sequence):
+        write_mesh(src / f"f{i}.obj", Mesh(m.positions, m.faces, uvs=m.uvs, uv_faces=m.uv_faces, texture=src / "skin.png"))
+    stream, out = tmp_path / "s.dmsh", tmp_path / "out"
+    assert main(["encode", str(src), "-o", str(stream), "--texture-size", str(SIZE), "-q"]) == 0
+    assert main(["decode", str(stream), "-o", str(out), "-q"]) == 0
+    frame = read_mesh(out / "frame_0000.obj")
+    assert frame.uvs is not None and frame.texture.name == "frame_0000.png"
+    assert read_image(frame.texture).shape == (SIZE, SIZE, 3)
+    assert main(["metrics", str(src), str(out), "--json", "-q"]) == 0
+
+
+def test_basketball_textured_codes_with_a_good_texture(tmp_path):
+    folder = shared_sequence("basketball_textured")
+    frames = [read_mesh(p) for p in sorted(folder.glob("*.obj"))[:2]]
+    result = api.encode_frames(frames, keep_reconstructions=True, texture_size=1024, texture_qp=22)
+    m = api.metrics(frames, result.reconstructions, peak=1876.1)
+    assert m["y_psnr"] > 30, m
+    decoded = list(dynmesh.decode(result.data))
+    assert all(np.array_equal(r.image, d.image) for r, d in zip(result.reconstructions, decoded))
