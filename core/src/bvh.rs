@@ -132,7 +132,7 @@ impl Bvh {
             let (link, count) = self.node(node);
             if count > 0 {
                 for k in link as usize..(link + count) as usize {
-                    let point = closest_on_triangle(q, self.tris[k]);
+                    let point = closest_on_triangle(q, self.tris[k]).0;
                     let d = sub(point, q);
                     let cand = SurfacePoint { point, triangle: self.ids[k], dist2: dot(d, d) };
                     if better_point(&cand, best.as_ref()) {
@@ -171,7 +171,7 @@ impl Bvh {
             let (link, count) = self.node(stack[sp]);
             if count > 0 {
                 let tris = &self.tris[link as usize..(link + count) as usize];
-                if tris.iter().any(|&t| dist2(closest_on_triangle(q, t), q) < r2) {
+                if tris.iter().any(|&t| closest_on_triangle(q, t).1 < r2) {
                     return true;
                 }
                 continue;
@@ -235,11 +235,6 @@ impl Bvh {
         }
         best
     }
-}
-
-fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
-    let d = sub(a, b);
-    dot(d, d)
 }
 
 fn better_point(c: &SurfacePoint, best: Option<&SurfacePoint>) -> bool {
@@ -423,19 +418,23 @@ fn line_triangle(p: [f64; 3], d: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> Option<f
     t.is_finite().then_some(t)
 }
 
-/// Closest point of triangle `abc` to `p` (Ericson, Real-Time Collision Detection 5.1.5).
-/// Degenerate triangles go to the segment fallback, where the region formulas would divide by
-/// zero.
-fn closest_on_triangle(p: [f64; 3], tri: [[f64; 3]; 3]) -> [f64; 3] {
+/// Closest point of triangle `abc` to `p`, its squared distance and its barycentrics
+/// (Ericson, Real-Time Collision Detection 5.1.5). Shared with `transfer`, whose exact
+/// search must pick the same triangle as [`Bvh::closest_point`] on ties. Degenerate
+/// triangles go to the segment fallback, where the region formulas would divide by zero.
+pub(crate) fn closest_on_triangle(p: [f64; 3], tri: [[f64; 3]; 3]) -> ([f64; 3], f64, [f64; 3]) {
     let [a, b, c] = tri;
     let ab = sub(b, a);
     let ac = sub(c, a);
     let n = cross(ab, ac);
-    if dot(n, n) <= 1e-20 * dot(ab, ab) * dot(ac, ac) {
-        return closest_on_edges(p, tri);
-    }
-    let r = closest_on_proper_triangle(p, a, b, c, ab, ac);
-    if r.iter().all(|x| x.is_finite()) { r } else { closest_on_edges(p, tri) }
+    let (point, bary) = if dot(n, n) <= 1e-20 * dot(ab, ab) * dot(ac, ac) {
+        closest_on_edges(p, tri)
+    } else {
+        let r = closest_on_proper_triangle(p, a, b, c, ab, ac);
+        if r.0.iter().all(|x| x.is_finite()) { r } else { closest_on_edges(p, tri) }
+    };
+    let d = sub(point, p);
+    (point, dot(d, d), bary)
 }
 
 fn closest_on_proper_triangle(
@@ -445,57 +444,65 @@ fn closest_on_proper_triangle(
     c: [f64; 3],
     ab: [f64; 3],
     ac: [f64; 3],
-) -> [f64; 3] {
+) -> ([f64; 3], [f64; 3]) {
     let ap = sub(p, a);
     let (d1, d2) = (dot(ab, ap), dot(ac, ap));
     if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
+        return (a, [1.0, 0.0, 0.0]);
     }
     let bp = sub(p, b);
     let (d3, d4) = (dot(ab, bp), dot(ac, bp));
     if d3 >= 0.0 && d4 <= d3 {
-        return b;
+        return (b, [0.0, 1.0, 0.0]);
     }
     let vc = d1 * d4 - d3 * d2;
     if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        return add(a, scale(ab, d1 / (d1 - d3)));
+        let t = d1 / (d1 - d3);
+        return (add(a, scale(ab, t)), [1.0 - t, t, 0.0]);
     }
     let cp = sub(p, c);
     let (d5, d6) = (dot(ab, cp), dot(ac, cp));
     if d6 >= 0.0 && d5 <= d6 {
-        return c;
+        return (c, [0.0, 0.0, 1.0]);
     }
     let vb = d5 * d2 - d1 * d6;
     if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        return add(a, scale(ac, d2 / (d2 - d6)));
+        let t = d2 / (d2 - d6);
+        return (add(a, scale(ac, t)), [1.0 - t, 0.0, t]);
     }
     let va = d3 * d6 - d5 * d4;
     if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
         let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return add(b, scale(sub(c, b), w));
+        return (add(b, scale(sub(c, b), w)), [0.0, 1.0 - w, w]);
     }
     let denom = 1.0 / (va + vb + vc);
-    add(a, add(scale(ab, vb * denom), scale(ac, vc * denom)))
+    let (v, w) = (vb * denom, vc * denom);
+    (add(a, add(scale(ab, v), scale(ac, w))), [1.0 - v - w, v, w])
 }
 
-fn closest_on_edges(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
-    [(a, b), (b, c), (c, a)]
-        .into_iter()
-        .map(|(s, e)| closest_on_segment(p, s, e))
-        .fold((a, f64::INFINITY), |best, x| {
-            let d = sub(x, p);
-            if dot(d, d) < best.1 { (x, dot(d, d)) } else { best }
-        })
-        .0
+fn closest_on_edges(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> ([f64; 3], [f64; 3]) {
+    let mut best = (a, f64::INFINITY, [1.0, 0.0, 0.0]);
+    for (k, (s, e)) in [(a, b), (b, c), (c, a)].into_iter().enumerate() {
+        let (x, t) = closest_on_segment(p, s, e);
+        let d = sub(x, p);
+        if dot(d, d) < best.1 {
+            let mut bary = [0.0; 3];
+            bary[k] = 1.0 - t;
+            bary[(k + 1) % 3] = t;
+            best = (x, dot(d, d), bary);
+        }
+    }
+    (best.0, best.2)
 }
 
-fn closest_on_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+fn closest_on_segment(p: [f64; 3], a: [f64; 3], b: [f64; 3]) -> ([f64; 3], f64) {
     let ab = sub(b, a);
     let len2 = dot(ab, ab);
     if len2 <= 0.0 {
-        return a;
+        return (a, 0.0);
     }
-    add(a, scale(ab, (dot(sub(p, a), ab) / len2).clamp(0.0, 1.0)))
+    let t = (dot(sub(p, a), ab) / len2).clamp(0.0, 1.0);
+    (add(a, scale(ab, t)), t)
 }
 
 /// Meshes built by the tests of this module and of `displace`.
@@ -662,7 +669,7 @@ mod tests {
     fn brute_closest((pos, faces): &Soup, q: [f64; 3]) -> (f64, u32) {
         let mut best = (f64::INFINITY, u32::MAX);
         for (i, f) in faces.iter().enumerate() {
-            let d2 = dist2(closest_on_triangle(q, f.map(|v| pos[v as usize])), q);
+            let d2 = closest_on_triangle(q, f.map(|v| pos[v as usize])).1;
             if d2 < best.0 {
                 best = (d2, i as u32);
             }
@@ -692,7 +699,8 @@ mod tests {
             let got = bvh.closest_point(q).unwrap();
             let want = brute_closest(&mesh, q);
             assert_eq!((got.dist2, got.triangle), want, "query {q:?}");
-            assert!((dist2(got.point, q) - got.dist2).abs() < 1e-9);
+            let d = sub(got.point, q);
+            assert!((dot(d, d) - got.dist2).abs() < 1e-9);
             let r = want.0.sqrt();
             assert!(bvh.any_within(q, r * 1.001) && !bvh.any_within(q, r * 0.999), "{q:?}");
         }
