@@ -65,7 +65,7 @@ def sequence_bounds(meshes: Iterable[Mesh]) -> tuple[np.ndarray, np.ndarray]:
 def _textured(meshes: list[Mesh], option) -> bool:
     """Whether to code textures: ``option`` True/False, or "auto" (when every frame has
     UVs and a texture)."""
-    has = [m.uvs is not None and (m.image is not None or m.texture is not None) for m in meshes]
+    has = [_has_texture(m) for m in meshes]
     if option == "auto":
         return all(has)
     if option is True and not all(has):
@@ -73,6 +73,13 @@ def _textured(meshes: list[Mesh], option) -> bool:
     if option not in (True, False):
         raise ValueError(f"texture must be True, False or 'auto', not {option!r}")
     return option
+
+
+def _place_texture_unit(parts: list[list[bytes]], closed: tuple[int, bytes] | None) -> None:
+    """Puts a closed texture group's unit right after its first frame's unit (``parts[0]``
+    is the header, ``parts[i + 1]`` frame ``i`` and what follows it)."""
+    if closed:
+        parts[closed[0] + 1].append(_core.texture_unit(closed[1]))
 
 
 def _image_of(m: Mesh) -> np.ndarray:
@@ -121,17 +128,14 @@ def encode_frames(
             closed = tex and tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, _image_of(m))
         except ValueError as e:
             raise ValueError(f"frame {i}: {e}") from None
-        if closed:
-            parts[closed[0] + 1].append(_core.texture_unit(closed[1]))
+        _place_texture_unit(parts, closed)
         parts.append([unit])
         result.frames.append(stats)
         if keep_reconstructions:
             result.reconstructions.append(Mesh(pos, faces))
         if on_frame is not None:
             on_frame(i, stats)
-    closed = tex and tex.finish()
-    if closed:
-        parts[closed[0] + 1].append(_core.texture_unit(closed[1]))
+    _place_texture_unit(parts, tex and tex.finish())
     if tex is not None and keep_reconstructions:
         for r, (uv, uv_faces), image in zip(result.reconstructions, tex.uvs, tex.images):
             r.uvs, r.uv_faces, r.image = uv, uv_faces, image

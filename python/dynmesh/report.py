@@ -37,8 +37,12 @@ COLOUR_METRICS = (("y_psnr", "Y"),)
 def metrics_of(results: dict) -> tuple[tuple[str, str], ...]:
     """(record key, label) of every PSNR the report compares: D1 and D2, and Y when every
     run measured texture."""
-    textured = results["runs"] and all("y_psnr" in r for r in results["runs"])
-    return METRICS + (COLOUR_METRICS if textured else ())
+    return METRICS + (COLOUR_METRICS if _textured(results) else ())
+
+
+def _textured(results: dict) -> bool:
+    """Whether every run measured texture."""
+    return bool(results["runs"]) and all("y_psnr" in r for r in results["runs"])
 
 
 def _labels(results: dict) -> list[str]:
@@ -252,10 +256,9 @@ def swapped_markdown(results: dict, rows: list[dict]) -> str:
 def rd_markdown(results: dict, sequence: str) -> str:
     """The measured points of one sequence: every variant and rate point (with texture
     PSNRs and the geometry and texture rates apart when the runs measured texture)."""
-    textured = len(metrics_of(results)) > len(METRICS)
     colour = [("geometry_mbps", "geometry Mbit/s", ".3f"), ("texture_mbps", "texture Mbit/s", ".3f"),
               ("y_psnr", "Y PSNR (dB)", ".2f"), ("cb_psnr", "Cb PSNR (dB)", ".2f"),
-              ("cr_psnr", "Cr PSNR (dB)", ".2f")] if textured else []
+              ("cr_psnr", "Cr PSNR (dB)", ".2f")] if _textured(results) else []
     rows = []
     for v in results["variants"]:
         for r in rd_points(results, sequence, v["name"]):
@@ -333,7 +336,7 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
         f"per-frame buffers), as Mbit/s at {results['fps']:g} frames per second"
         + (", texture included (geometry and texture rates apart in the tables); texture PSNR: colour sampled "
            "bilinearly at the same grid points, BT.709 YCbCr in [0, 1], peak 1, symmetric; Y BD-rates are on the "
-           "total rate." if len(metrics_of(results)) > len(METRICS) else ". Geometry only."),
+           "total rate." if _textured(results) else ". Geometry only."),
         "- **Draco** codes each frame as an independent mesh (DracoPy, positions quantized over the frame's own box); "
         "it reorders and merges vertices, and the harness measures exactly what Draco decodes, like any decoder "
         "output.",

@@ -14,6 +14,7 @@ texture unit after the group's intra frame (``docs/bitstream.md``, texture unit)
 
 from __future__ import annotations
 
+import bisect
 import struct
 from dataclasses import dataclass, field
 
@@ -162,25 +163,28 @@ class TextureDecoder:
         self._dec = decoder
         self._subdiv = subdiv
         self._open: _OpenGroup | None = None
+        # First frames of the texture groups, found once: each lookup copies a payload.
+        self._starts = [f for f in range(decoder.frame_count) if decoder.texture_payload(f) is not None]
 
     def textured(self) -> bool:
         """Whether the stream carries textures (its first frame has a texture unit)."""
-        return self._dec.frame_count > 0 and self._dec.texture_payload(0) is not None
+        return bool(self._starts) and self._starts[0] == 0
 
-    def group_start(self, index: int) -> int:
-        """The first frame of the texture group of frame ``index``."""
-        for f in range(index, -1, -1):
-            if self._dec.texture_payload(f) is not None:
-                return f
-        raise ValueError(f"frame {index}: no texture unit before it in a textured stream")
+    def group_of(self, index: int) -> tuple[int, int]:
+        """The first frame of the texture group of frame ``index``, and the group's length."""
+        k = bisect.bisect_right(self._starts, index) - 1
+        if k < 0:
+            raise ValueError(f"frame {index}: no texture unit before it in a textured stream")
+        end = self._starts[k + 1] if k + 1 < len(self._starts) else self._dec.frame_count
+        return self._starts[k], end - self._starts[k]
 
     def texture_of(self, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(uv, uv_faces, image)`` of frame ``index``, whose geometry was decoded last.
         Raises ValueError when the texture data is corrupt."""
-        first = self.group_start(index)
+        first, length = self.group_of(index)
         g = self._open
         if g is None or g.first != first or g.decoded > index - first + 1:
-            g = self._open = self._opened(first)
+            g = self._open = self._opened(first, length)
         if index - first >= g.frames:
             raise ValueError(f"frame {index}: beyond the {g.frames} frames of its texture group")
         while g.decoded <= index - first:
@@ -190,22 +194,18 @@ class TextureDecoder:
             g.decoded += 1
         return g.uv, g.uv_faces, g.image
 
-    def _opened(self, first: int) -> _OpenGroup:
+    def _opened(self, first: int, length: int) -> _OpenGroup:
         payload, offset = self._dec.texture_payload(first)
         try:
             header = unpack_group(payload)
         except ValueError as e:
             raise ValueError(f"frame {first}: {e} (texture unit at byte {offset})") from None
-        end = next((f for f in range(first + 1, self._dec.frame_count) if self._dec.texture_payload(f) is not None),
-                   self._dec.frame_count)
-        if header.frames != end - first:
-            raise ValueError(f"frame {first}: texture unit claims {header.frames} frames, its group has {end - first}")
-        last = self._dec.last_base()
-        if last is None:
-            raise ValueError(f"frame {first}: texture decoded before geometry")
+        if header.frames != length:
+            raise ValueError(f"frame {first}: texture unit claims {header.frames} frames, its group has {length}")
         # Every frame of the group has the intra frame's base connectivity, but only the
         # intra frame's own positions are those the atlas was coded on.
-        _, (positions, faces) = last if last[0] == first else self._base_of(first)
+        last = self._dec.last_base()
+        _, (positions, faces) = last if last is not None and last[0] == first else self._base_of(first)
         uv_faces, uv = atlas.decoded_atlas(header.atlas, positions, faces, header.uv_bits)
         uv, uv_faces = _core.subdivide_uv(uv, uv_faces, self._subdiv)
         return _OpenGroup(first, header.frames, uv, uv_faces, video.decode_video(header.video, header.codec))
