@@ -176,6 +176,20 @@ def test_video_round_trip_of_colour_is_close():
         assert np.abs(out[1].astype(int) - moved).mean() < 4, codec
 
 
+def test_yuv420_conversion_is_bt709_full_range_and_checks_shapes():
+    grey = np.full((2, 4, 3), 128, np.uint8)
+    planes = _core.rgb_to_yuv420(grey)
+    assert planes.shape == (3, 4) and planes.dtype == np.uint16
+    assert (planes[:2] == round(128 / 255 * 1023)).all() and (planes[2] == 512).all()
+    image = checker_image(32).repeat(2, axis=0).repeat(2, axis=1)
+    back = _core.yuv420_to_rgb(_core.rgb_to_yuv420(image))
+    assert back.shape == image.shape and np.abs(back.astype(int) - image).max() <= 1  # flat 2x2 blocks
+    with pytest.raises(ValueError, match="even"):
+        _core.rgb_to_yuv420(np.zeros((3, 4, 3), np.uint8))
+    with pytest.raises(ValueError, match="3H/2"):
+        _core.yuv420_to_rgb(np.zeros((4, 4), np.uint16))
+
+
 def test_obj_with_texture_round_trips_through_the_command_line(tmp_path, textured_sequence):
     src = tmp_path / "in"
     src.mkdir()

@@ -1,12 +1,13 @@
-//! Python bindings of the texture-aware measurements: colour PSNR of textured meshes as the
-//! common test conditions measure it, and snapshot rendering of (decoded) frames.
+//! Python bindings of the colour functions: colour PSNR of textured meshes as the common test
+//! conditions measure it, snapshot rendering of (decoded) frames, and the conversion between
+//! RGB textures and the 10-bit 4:2:0 planes of the texture video.
 //!
 //! Arrays are checked here (shapes, index ranges, finite values) so that the core's contracts
 //! hold and a mistake surfaces as a ValueError naming the problem, never as a panic. The core
 //! work runs with the GIL released.
 
-use numpy::ndarray::Array3;
-use numpy::{IntoPyArray, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
+use numpy::ndarray::{Array2, Array3};
+use numpy::{IntoPyArray, PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -14,7 +15,7 @@ use pyo3::types::PyDict;
 use dynmesh::mesh::Mesh;
 use dynmesh::metrics::{self, SamplingGrid};
 use dynmesh::render::View;
-use dynmesh::texture::{Texture, UvMesh};
+use dynmesh::texture::{self, Texture, UvMesh};
 
 use crate::{faces_of, positions_of};
 
@@ -25,6 +26,8 @@ const MAX_IMAGE_SIDE: usize = 16384;
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(textured_distortion, m)?)?;
     m.add_function(wrap_pyfunction!(render, m)?)?;
+    m.add_function(wrap_pyfunction!(rgb_to_yuv420, m)?)?;
+    m.add_function(wrap_pyfunction!(yuv420_to_rgb, m)?)?;
     Ok(())
 }
 
@@ -150,7 +153,39 @@ fn render<'py>(
     let view = View { azimuth_deg: azimuth, elevation_deg: elevation };
     let image =
         py.allow_threads(|| dynmesh::render::render(&mesh, texture.as_ref(), width, height, view));
-    let flat = image.rgb.into_iter().flatten().collect();
+    let flat = image.rgb.into_flattened();
+    Ok(Array3::from_shape_vec((height, width, 3), flat).expect("shape").into_pyarray(py))
+}
+
+/// An (H, W, 3) uint8 RGB image (H and W even) as FFmpeg's yuv420p10le frame: a (3H/2, W)
+/// uint16 array holding full-range 10-bit BT.709 Y, then Cb and Cr averaged over 2 x 2 texels.
+#[pyfunction]
+fn rgb_to_yuv420<'py>(py: Python<'py>, image: PyReadonlyArray3<'py, u8>) -> PyResult<Bound<'py, PyArray2<u16>>> {
+    let t = texture_of(&image)?;
+    if t.width % 2 != 0 || t.height % 2 != 0 {
+        return Err(PyValueError::new_err(format!("4:2:0 needs even sides, not {}x{}", t.width, t.height)));
+    }
+    let (w, h) = (t.width, t.height);
+    let planes = py.allow_threads(|| texture::yuv420_10bit(&t));
+    Ok(Array2::from_shape_vec((h * 3 / 2, w), planes).expect("shape").into_pyarray(py))
+}
+
+/// The inverse of `rgb_to_yuv420`: a (3H/2, W) uint16 yuv420p10le frame to (H, W, 3) uint8
+/// RGB, each chroma sample used for its 2 x 2 texels.
+#[pyfunction]
+fn yuv420_to_rgb<'py>(py: Python<'py>, planes: PyReadonlyArray2<'py, u16>) -> PyResult<Bound<'py, PyArray3<u8>>> {
+    let v = planes.as_array();
+    let (rows, width) = v.dim();
+    if rows % 3 != 0 {
+        return Err(PyValueError::new_err(format!("a 4:2:0 frame has 3H/2 rows, not {rows}")));
+    }
+    let height = rows * 2 / 3;
+    let v = v.as_standard_layout();
+    let samples = v.as_slice().expect("standard layout is contiguous");
+    let t = py
+        .allow_threads(|| texture::rgb_of_yuv420_10bit(samples, width, height))
+        .map_err(PyValueError::new_err)?;
+    let flat = t.rgb.into_flattened();
     Ok(Array3::from_shape_vec((height, width, 3), flat).expect("shape").into_pyarray(py))
 }
 

@@ -61,7 +61,7 @@ type MeshArrays<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>);
 
 fn arrays_of<'py>(py: Python<'py>, m: Mesh) -> MeshArrays<'py> {
     let n = m.positions.len();
-    let p = Array2::from_shape_vec((n, 3), m.positions.into_iter().flatten().collect()).expect("shape");
+    let p = Array2::from_shape_vec((n, 3), m.positions.into_flattened()).expect("shape");
     let nf = m.faces.len();
     let f = Array2::from_shape_vec((nf, 3), m.faces.into_iter().flatten().map(i64::from).collect()).expect("shape");
     (p.into_pyarray(py), f.into_pyarray(py))

@@ -61,6 +61,6 @@ fn transfer_texture<'py>(
         let covered = t.covered.iter().filter(|&&c| c).count() as f64 / t.covered.len() as f64;
         (t.texture, covered)
     });
-    let flat = image.rgb.into_iter().flatten().collect();
+    let flat = image.rgb.into_flattened();
     Ok((Array3::from_shape_vec((height, width, 3), flat).expect("shape").into_pyarray(py), covered))
 }

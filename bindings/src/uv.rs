@@ -117,7 +117,7 @@ fn subdivide_uv<'py>(
     let uv_faces = uv_faces_of(&uv_faces, rows, uv.len())?;
     let (suv, sfaces) = py.allow_threads(|| subdivide::subdivide_uv(&uv, &uv_faces, iterations));
     let n = suv.len();
-    let suv = Array2::from_shape_vec((n, 2), suv.into_iter().flatten().collect()).expect("shape");
+    let suv = Array2::from_shape_vec((n, 2), suv.into_flattened()).expect("shape");
     Ok((suv.into_pyarray(py), index_array(py, sfaces)))
 }
 

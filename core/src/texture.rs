@@ -5,6 +5,8 @@
 //! `(x, y)` (column, row from the top) has its centre at `u = (x + 0.5) / width`,
 //! `v = 1 - (y + 0.5) / height`.
 
+use rayon::prelude::*;
+
 use crate::mesh::Mesh;
 
 /// An RGB image, 8 bits per channel, rows from the top.
@@ -85,6 +87,64 @@ pub fn ycbcr709(rgb: [f64; 3]) -> [f64; 3] {
     [y, (b - y) / 1.8556 + 0.5, (r - y) / 1.5748 + 0.5]
 }
 
+/// Full scale of the 10-bit planes of the texture video.
+const PEAK_10BIT: f64 = 1023.0;
+
+/// The texture as the video codes it: FFmpeg's `yuv420p10le` layout, full-range 10-bit
+/// BT.709 (`ycbcr709`) Y for every texel, then the Cb and Cr planes, each the mean over 2 x 2
+/// texels. `width * height * 3 / 2` samples. Panics unless both sides are even.
+pub fn yuv420_10bit(t: &Texture) -> Vec<u16> {
+    assert!(t.width % 2 == 0 && t.height % 2 == 0, "4:2:0 needs even sides, not {}x{}", t.width, t.height);
+    let (w, h) = (t.width, t.height);
+    // Adding a half and truncating rounds the non-negative values exactly as `round` would, and
+    // compiles to a few instructions instead of a libm call per sample.
+    let level = |v: f64| (v * PEAK_10BIT + 0.5).clamp(0.0, PEAK_10BIT) as u16;
+    let mut out = vec![0u16; w * h * 3 / 2];
+    let (luma, chroma) = out.split_at_mut(w * h);
+    luma.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
+        for (x, v) in row.iter_mut().enumerate() {
+            *v = level(ycbcr709(t.texel(x, y).map(f64::from))[0]);
+        }
+    });
+    let (cb, cr) = chroma.split_at_mut(w * h / 4);
+    cb.par_chunks_mut(w / 2).zip(cr.par_chunks_mut(w / 2)).enumerate().for_each(|(y, (cb_row, cr_row))| {
+        for x in 0..w / 2 {
+            let mut sum = [0.0; 2];
+            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let c = ycbcr709(t.texel(2 * x + dx, 2 * y + dy).map(f64::from));
+                sum = [sum[0] + c[1], sum[1] + c[2]];
+            }
+            cb_row[x] = level(sum[0] / 4.0);
+            cr_row[x] = level(sum[1] / 4.0);
+        }
+    });
+    out
+}
+
+/// The RGB texture of `yuv420_10bit` planes (`width * height * 3 / 2` samples, both sides
+/// even), each chroma sample used for its 2 x 2 texels; the inverse of `ycbcr709`, rounded.
+/// Returns an error naming the mismatch when the plane sizes do not fit the sides.
+pub fn rgb_of_yuv420_10bit(planes: &[u16], width: usize, height: usize) -> Result<Texture, String> {
+    if width == 0 || height == 0 || width % 2 != 0 || height % 2 != 0 || planes.len() != width * height * 3 / 2 {
+        return Err(format!("{} samples are not the 4:2:0 planes of a {width}x{height} image", planes.len()));
+    }
+    let (luma, chroma) = planes.split_at(width * height);
+    let (cb, cr) = chroma.split_at(width * height / 4);
+    let byte = |v: f64| (v * 255.0 + 0.5).clamp(0.0, 255.0) as u8; // rounds, see `yuv420_10bit`
+    let mut rgb = vec![[0u8; 3]; width * height];
+    rgb.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        for (x, texel) in row.iter_mut().enumerate() {
+            let c = (y / 2) * (width / 2) + x / 2;
+            let l = luma[y * width + x] as f64 / PEAK_10BIT;
+            let (u, v) = (cb[c] as f64 / PEAK_10BIT - 0.5, cr[c] as f64 / PEAK_10BIT - 0.5);
+            let (r, b) = (l + 1.5748 * v, l + 1.8556 * u);
+            let g = (l - 0.2126 * r - 0.0722 * b) / 0.7152;
+            *texel = [byte(r), byte(g), byte(b)];
+        }
+    });
+    Ok(Texture { width, height, rgb })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -122,5 +182,20 @@ mod tests {
         assert!(out.validate().unwrap_err().contains("UV index"));
         let nan = UvMesh { uv: vec![[0.0; 2], [f64::NAN, 0.0], [0.0, 1.0]], ..good };
         assert!(nan.validate().unwrap_err().contains("not finite"));
+    }
+
+    #[test]
+    fn yuv420_round_trip_keeps_flat_colours_and_averages_chroma() {
+        let mut t = Texture::filled(4, 2, [30, 140, 220]);
+        let back = rgb_of_yuv420_10bit(&yuv420_10bit(&t), 4, 2).unwrap();
+        assert!(back.rgb.iter().all(|c| c.iter().zip([30, 140, 220]).all(|(a, b)| (*a as i32 - b).abs() <= 1)), "{back:?}");
+        // Grey has neutral chroma (512); a 2x2 block of black and white averages its luma apart.
+        t = Texture::filled(2, 2, [0, 0, 0]);
+        t.rgb[0] = [255, 255, 255];
+        let planes = yuv420_10bit(&t);
+        assert_eq!(planes, vec![1023, 0, 0, 0, 512, 512]);
+        assert_eq!(rgb_of_yuv420_10bit(&planes, 2, 2).unwrap().rgb, vec![[255; 3], [0; 3], [0; 3], [0; 3]]);
+        assert!(rgb_of_yuv420_10bit(&planes, 4, 2).unwrap_err().contains("4x2"));
+        assert!(rgb_of_yuv420_10bit(&planes, 3, 2).is_err());
     }
 }

@@ -18,6 +18,18 @@ from . import _core
 UV_BITS = 12
 
 
+def _packing(size: int) -> xatlas.PackOptions:
+    """Packing on a grid of half the atlas side: charts land on even texels and the gutter is
+    the same number of texels, in about half the packing time. (On basketball_textured it
+    changed texture bytes by -1 % and luma PSNR by -0.02 dB; one charting iteration fewer,
+    the other speed knob, cost 6-8 % texture bytes and was left alone.)"""
+    pack = xatlas.PackOptions()
+    pack.resolution = max(1, int(size) // 2)
+    pack.padding = max(1, size // 1024)
+    pack.bilinear = True
+    return pack
+
+
 def make_atlas(positions: np.ndarray, faces: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     """Charts and packs the mesh ``(positions, faces)`` into a ``size`` x ``size`` atlas.
 
@@ -27,11 +39,7 @@ def make_atlas(positions: np.ndarray, faces: np.ndarray, size: int) -> tuple[np.
     """
     atlas = xatlas.Atlas()
     atlas.add_mesh(np.ascontiguousarray(positions, np.float32), np.ascontiguousarray(faces, np.uint32))
-    pack = xatlas.PackOptions()
-    pack.resolution = int(size)
-    pack.padding = max(2, size // 512)
-    pack.bilinear = True
-    atlas.generate(pack_options=pack)
+    atlas.generate(pack_options=_packing(size))
     vmapping, indices, uv = atlas[0]
     uv_faces = np.asarray(indices, np.int64).reshape(-1, 3)
     if len(uv_faces) != len(faces) or not np.array_equal(np.asarray(vmapping)[uv_faces], faces):
