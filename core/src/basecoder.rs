@@ -111,6 +111,9 @@ fn encode(positions: &[[u32; 3]], faces: &[[u32; 3]], bits: u32, with_positions:
     out
 }
 
+/// A base mesh on the base grid: integer positions and faces.
+pub type GridMesh = (Vec<[u32; 3]>, Vec<[u32; 3]>);
+
 /// Inverse of [`encode_base`] for the same `bits`. Returns the canonical mesh `(positions,
 /// faces)`: vertices in order of first use by the traversal, faces in traversal order; the
 /// encoder's caller uses exactly this decoded mesh from then on.
@@ -118,7 +121,7 @@ fn encode(positions: &[[u32; 3]], faces: &[[u32; 3]], bits: u32, with_positions:
 /// Never panics; returns `Err(reason)` for any stream the encoder cannot have written (as far
 /// as it can tell: a corrupted stream may also decode to some other valid mesh). Work and
 /// memory are bounded by `MAX_FACES_PER_BYTE` faces per input byte.
-pub fn decode_base(data: &[u8], bits: u32) -> Result<(Vec<[u32; 3]>, Vec<[u32; 3]>), String> {
+pub fn decode_base(data: &[u8], bits: u32) -> Result<GridMesh, String> {
     if !(1..=MAX_BITS).contains(&bits) {
         return Err(format!("base mesh: position bit depth {bits} out of range"));
     }
