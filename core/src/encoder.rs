@@ -389,32 +389,33 @@ impl SequenceEncoder {
         loss_db <= self.config.rd_slope_db * rate_saving
     }
 
-    /// An estimate of D1 that needs no sampling, in grid units: the larger of the squared
-    /// distance from the reconstruction to the input surface, measured at face centroids and
-    /// weighted by face area (D1 samples the surface uniformly, so a few stretched or folded
-    /// triangles weigh what their area weighs), and the mean squared distance from the
-    /// input's vertices to the reconstruction's surface.
+    /// An estimate of D1 that needs no sampling, in grid units: the larger of the two
+    /// directions' squared distances from one surface to the other, measured at face
+    /// centroids and weighted by face area. D1 samples both surfaces uniformly, so a few
+    /// stretched or folded triangles weigh what their area weighs, and a finely tessellated
+    /// part of the input (hands, a face) no more than its area: weighting the input's
+    /// vertices instead made predicted frames look 2-4 dB worse than D1 finds them.
     fn distortion(&self, reconstruction: &Mesh, input: &Mesh, target: &Bvh) -> f64 {
         let rec: Vec<[f64; 3]> = reconstruction.positions.iter().map(|&p| self.header.grid.to_grid(p)).collect();
-        let (weighted, area) = reconstruction
-            .faces
-            .par_iter()
-            .map(|f| {
-                let c = f.map(|v| rec[v as usize]);
-                let centroid = std::array::from_fn(|k| (c[0][k] + c[1][k] + c[2][k]) / 3.0);
-                let a = norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
-                (a * target.closest_point(centroid).map_or(0.0, |h| h.dist2), a)
-            })
-            .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
-        let forward = if area > 0.0 { weighted / area } else { 0.0 };
-        let backward = mean_squared_distance(&input.positions, &Bvh::new(&rec, &reconstruction.faces));
+        let forward = area_weighted_squared_distance(&rec, &reconstruction.faces, target);
+        let backward = area_weighted_squared_distance(&input.positions, &input.faces, &Bvh::new(&rec, &reconstruction.faces));
         forward.max(backward)
     }
 }
 
-fn mean_squared_distance(points: &[[f64; 3]], surface: &Bvh) -> f64 {
-    let sum: f64 = points.par_iter().map(|&p| surface.closest_point(p).map_or(0.0, |c| c.dist2)).sum();
-    sum / points.len().max(1) as f64
+/// Mean squared distance from the surface `(positions, faces)` to `surface`, sampled at face
+/// centroids and weighted by face area (0 for a surface without area).
+fn area_weighted_squared_distance(positions: &[[f64; 3]], faces: &[[u32; 3]], surface: &Bvh) -> f64 {
+    let (weighted, area) = faces
+        .par_iter()
+        .map(|f| {
+            let c = f.map(|v| positions[v as usize]);
+            let centroid = std::array::from_fn(|k| (c[0][k] + c[1][k] + c[2][k]) / 3.0);
+            let a = norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
+            (a * surface.closest_point(centroid).map_or(0.0, |h| h.dist2), a)
+        })
+        .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+    if area > 0.0 { weighted / area } else { 0.0 }
 }
 
 /// Decimates the input (grid units) and codes the quantized base mesh.
@@ -439,4 +440,40 @@ fn quantized_coefficients(h: &SequenceHeader, qp: i32, sub: &Subdivision, local:
         q.extend((0..comps).map(|k| quantize::quantize_shifted(c[k], s, offset)));
     }
     q
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Squares of side 1 at `x0 <= x <= x0 + 1`, `0 <= y <= 1`, height `z`, split `n` x `n`.
+    fn square(x0: f64, z: f64, n: u32, mesh: &mut Mesh) {
+        let first = mesh.positions.len() as u32;
+        for j in 0..=n {
+            for i in 0..=n {
+                mesh.positions.push([x0 + i as f64 / n as f64, j as f64 / n as f64, z]);
+            }
+        }
+        for j in 0..n {
+            for i in 0..n {
+                let v = first + j * (n + 1) + i;
+                mesh.faces.push([v, v + 1, v + n + 2]);
+                mesh.faces.push([v, v + n + 2, v + n + 1]);
+            }
+        }
+    }
+
+    #[test]
+    fn squared_distance_weighs_area_not_tessellation() {
+        let mut plane = Mesh::default();
+        square(0.0, 0.0, 1, &mut plane);
+        square(1.0, 0.0, 1, &mut plane);
+        // Half of the surface lies 1 above the plane, finely tessellated; the other half on it.
+        let mut m = Mesh::default();
+        square(0.0, 1.0, 8, &mut m);
+        square(1.0, 0.0, 1, &mut m);
+        let d = area_weighted_squared_distance(&m.positions, &m.faces, &Bvh::new(&plane.positions, &plane.faces));
+        assert!((d - 0.5).abs() < 1e-9, "{d}");
+        assert_eq!(area_weighted_squared_distance(&[[0.0; 3]; 3], &[[0, 1, 2]], &Bvh::new(&plane.positions, &plane.faces)), 0.0);
+    }
 }
