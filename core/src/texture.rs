@@ -79,12 +79,19 @@ impl UvMesh {
     }
 }
 
+// BT.709: Y = KR R + KG G + KB B, Cb = (B - Y) / CB_SCALE, Cr = (R - Y) / CR_SCALE.
+const KR: f64 = 0.2126;
+const KG: f64 = 0.7152;
+const KB: f64 = 0.0722;
+const CB_SCALE: f64 = 1.8556;
+const CR_SCALE: f64 = 1.5748;
+
 /// BT.709 Y, Cb, Cr in [0, 1] (full range, Cb and Cr centred on 0.5) of an RGB colour with
 /// channels in [0, 255]: the colour space of the texture PSNR in the common test conditions.
 pub fn ycbcr709(rgb: [f64; 3]) -> [f64; 3] {
     let [r, g, b] = rgb.map(|c| c / 255.0);
-    let y = 0.2126 * r + 0.7152 * g + 0.0722 * b;
-    [y, (b - y) / 1.8556 + 0.5, (r - y) / 1.5748 + 0.5]
+    let y = KR * r + KG * g + KB * b;
+    [y, (b - y) / CB_SCALE + 0.5, (r - y) / CR_SCALE + 0.5]
 }
 
 /// Full scale of the 10-bit planes of the texture video.
@@ -101,23 +108,22 @@ pub fn yuv420_10bit(t: &Texture) -> Vec<u16> {
     let level = |v: f64| (v * PEAK_10BIT + 0.5).clamp(0.0, PEAK_10BIT) as u16;
     let mut out = vec![0u16; w * h * 3 / 2];
     let (luma, chroma) = out.split_at_mut(w * h);
-    luma.par_chunks_mut(w).enumerate().for_each(|(y, row)| {
-        for (x, v) in row.iter_mut().enumerate() {
-            *v = level(ycbcr709(t.texel(x, y).map(f64::from))[0]);
-        }
-    });
     let (cb, cr) = chroma.split_at_mut(w * h / 4);
-    cb.par_chunks_mut(w / 2).zip(cr.par_chunks_mut(w / 2)).enumerate().for_each(|(y, (cb_row, cr_row))| {
-        for x in 0..w / 2 {
-            let mut sum = [0.0; 2];
-            for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                let c = ycbcr709(t.texel(2 * x + dx, 2 * y + dy).map(f64::from));
-                sum = [sum[0] + c[1], sum[1] + c[2]];
+    // One pass per 2 x 2 block: its four lumas and the mean of their chroma.
+    luma.par_chunks_mut(2 * w).zip(cb.par_chunks_mut(w / 2)).zip(cr.par_chunks_mut(w / 2)).enumerate().for_each(
+        |(y, ((luma_rows, cb_row), cr_row))| {
+            for x in 0..w / 2 {
+                let mut sum = [0.0; 2];
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let c = ycbcr709(t.texel(2 * x + dx, 2 * y + dy).map(f64::from));
+                    luma_rows[dy * w + 2 * x + dx] = level(c[0]);
+                    sum = [sum[0] + c[1], sum[1] + c[2]];
+                }
+                cb_row[x] = level(sum[0] / 4.0);
+                cr_row[x] = level(sum[1] / 4.0);
             }
-            cb_row[x] = level(sum[0] / 4.0);
-            cr_row[x] = level(sum[1] / 4.0);
-        }
-    });
+        },
+    );
     out
 }
 
@@ -137,8 +143,8 @@ pub fn rgb_of_yuv420_10bit(planes: &[u16], width: usize, height: usize) -> Resul
             let c = (y / 2) * (width / 2) + x / 2;
             let l = luma[y * width + x] as f64 / PEAK_10BIT;
             let (u, v) = (cb[c] as f64 / PEAK_10BIT - 0.5, cr[c] as f64 / PEAK_10BIT - 0.5);
-            let (r, b) = (l + 1.5748 * v, l + 1.8556 * u);
-            let g = (l - 0.2126 * r - 0.0722 * b) / 0.7152;
+            let (r, b) = (l + CR_SCALE * v, l + CB_SCALE * u);
+            let g = (l - KR * r - KB * b) / KG;
             *texel = [byte(r), byte(g), byte(b)];
         }
     });
