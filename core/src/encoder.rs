@@ -307,7 +307,8 @@ impl SequenceEncoder {
     /// Fits, transforms, quantizes and codes the displacements of the base mesh
     /// `(base, faces)` towards `target`, and appends them to the payload `w`. A predicted
     /// frame passes its reference's coefficients: they correspond vertex for vertex, and the
-    /// coefficients are coded as differences from them when that is smaller (mode byte 1).
+    /// coefficients are coded as (rounded) differences from them when that is smaller (mode
+    /// byte 1).
     #[allow(clippy::too_many_arguments)]
     fn finish_candidate(
         &self,
@@ -323,7 +324,8 @@ impl SequenceEncoder {
         let sub = decoder::subdivided_base(h, &base, &faces);
         let frames = displace::local_frames(&sub.positions, &sub.faces);
         let world = displace::fit_displacements(&sub.positions, &sub.faces, &frames, target, h.components == 1);
-        let q = quantized_coefficients(h, qp, &sub, &displace::to_local(&world, &frames));
+        let steps = coefficient_steps(h, qp, &sub, &displace::to_local(&world, &frames));
+        let mut q: Vec<i32> = steps.iter().map(|&x| quantize::round_dead_zone(x, quantize::ROUNDING_BIAS)).collect();
         let coded = |values: &[i32]| {
             let mut enc = ec::Encoder::new();
             coefcoder::encode(&mut enc, values, h.components as usize, &sub);
@@ -331,12 +333,13 @@ impl SequenceEncoder {
         };
         let mut coef_bytes = coded(&q);
         if let Some(r) = reference_coefficients {
-            let residual: Vec<i32> = q.iter().zip(r).map(|(a, b)| a.saturating_sub(*b)).collect();
+            let residual = differences_from(&steps, r);
             let predicted = coded(&residual);
             let use_prediction = predicted.len() < coef_bytes.len();
             w.u8(use_prediction as u8);
             if use_prediction {
                 coef_bytes = predicted;
+                q = residual.iter().zip(r).map(|(d, b)| d + b).collect();
             }
         }
         let reconstruction = decoder::reconstruct(h, &sub, &frames, &q, qp);
@@ -427,19 +430,28 @@ fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], 
     basecoder::encode_base(&positions, &base.faces, h.base_bits)
 }
 
-/// Forward lifting and per-level (and, with AQ, per-vertex) quantization of the local
-/// displacement components.
-fn quantized_coefficients(h: &SequenceHeader, qp: i32, sub: &Subdivision, local: &[[f64; 3]]) -> Vec<i32> {
+/// The quantized differences of coefficients `steps` (in quantization steps) from the
+/// reference's quantized coefficients. The difference is what gets rounded, not the
+/// coefficient: a coefficient less than a step from its reference's then costs nothing,
+/// where rounding it first could leave a difference of one either way.
+fn differences_from(steps: &[f64], reference: &[i32]) -> Vec<i32> {
+    steps.iter().zip(reference).map(|(&x, &r)| quantize::round_dead_zone(x - r as f64, quantize::PREDICTED_ROUNDING_BIAS)).collect()
+}
+
+/// Forward lifting of the local displacement components, scaled per level (and, with AQ,
+/// per vertex) into quantization steps and shifted by AQ's lattice offset: the values the
+/// quantizer rounds, `comps` per vertex.
+fn coefficient_steps(h: &SequenceHeader, qp: i32, sub: &Subdivision, local: &[[f64; 3]]) -> Vec<f64> {
     let comps = h.components as usize;
     let mut signal = local.to_vec();
     transform::forward(&mut signal, sub);
     let scales = decoder::vertex_scales(h, qp, sub);
     let offset = h.aq.map_or(0.0, |a| a.delta);
-    let mut q = Vec::with_capacity(signal.len() * comps);
+    let mut x = Vec::with_capacity(signal.len() * comps);
     for (c, &s) in signal.iter().zip(&scales) {
-        q.extend((0..comps).map(|k| quantize::quantize_shifted(c[k], s, offset)));
+        x.extend((0..comps).map(|k| quantize::steps(c[k], s, offset)));
     }
-    q
+    x
 }
 
 #[cfg(test)]
@@ -461,6 +473,12 @@ mod tests {
                 mesh.faces.push([v, v + n + 2, v + n + 1]);
             }
         }
+    }
+
+    #[test]
+    fn differences_within_a_step_of_the_reference_are_zero() {
+        // 2.6 rounds to 2 on its own (dead zone), which would leave -1 against a reference of 3.
+        assert_eq!(differences_from(&[2.6, -0.2, 5.0, -4.9], &[3, 0, 3, -3]), vec![0, 0, 2, -1]);
     }
 
     #[test]
