@@ -20,7 +20,7 @@ use crate::mesh::{cross, norm, sub, Mesh};
 use crate::motion;
 use crate::quantize::{self, AqParams};
 use crate::subdivide::{Scheme, Subdivision};
-use crate::tracking;
+use crate::tracking::{self, Bindings};
 use crate::transform;
 
 /// How predicted frames find their base mesh (the paper's ablation switches).
@@ -193,6 +193,9 @@ struct Reference {
     faces: Vec<[u32; 3]>,
     /// Quantized displacement coefficients, which a predicted frame may code its own against.
     coefficients: Vec<i32>,
+    /// The base vertices' places on `input`, while the frames since they were bound have
+    /// kept its connectivity and been predicted by tracking.
+    bindings: Option<Bindings>,
 }
 
 /// One way of coding the current frame.
@@ -241,7 +244,7 @@ impl SequenceEncoder {
         let same_topology = self.reference.as_ref().is_some_and(|r| tracking::same_connectivity(&r.input, &input));
         let may_predict = self.frame % cfg.intra_period != 0 && self.reference.is_some();
         let anchor_start = Instant::now();
-        let anchor = if may_predict { self.anchor_positions(&input, same_topology) } else { None };
+        let (anchor, bindings) = if may_predict { self.anchor_positions(&input, same_topology) } else { (None, None) };
         let anchor_seconds = anchor_start.elapsed().as_secs_f64();
         let predicted = anchor.map(|a| self.predicted(&a, &input, &target)).transpose()?;
         let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
@@ -261,24 +264,27 @@ impl SequenceEncoder {
             seconds: start.elapsed().as_secs_f64(),
         };
         let base = Mesh::new(decoder::base_in_world_units(&self.header, &chosen.base), chosen.faces.clone());
-        self.reference = Some(Reference { input, base: chosen.base, faces: chosen.faces, coefficients: chosen.coefficients });
+        let bindings = bindings.filter(|_| chosen.frame_type == FrameType::Predicted);
+        self.reference = Some(Reference { input, base: chosen.base, faces: chosen.faces, coefficients: chosen.coefficients, bindings });
         self.frame += 1;
         Ok(EncodedFrame { unit, reconstruction: chosen.reconstruction, base, stats })
     }
 
     /// The current frame's base mesh positions (base grid units) with the reference base
-    /// mesh's connectivity, if this frame may be predicted.
-    fn anchor_positions(&self, input: &Mesh, same_topology: bool) -> Option<Vec<[u32; 3]>> {
-        let r = self.reference.as_ref()?;
+    /// mesh's connectivity, if this frame may be predicted; with constant topology also the
+    /// bindings that tracked them, which the next frame reuses if this one is predicted.
+    fn anchor_positions(&self, input: &Mesh, same_topology: bool) -> (Option<Vec<[u32; 3]>>, Option<Bindings>) {
+        let Some(r) = self.reference.as_ref() else { return (None, None) };
         let base_grid = self.header.grid.coarser(self.header.base_bits);
         let reference = Mesh::new(decoder::base_in_grid_units(&self.header, &r.base), r.faces.clone());
-        let moved = if same_topology {
-            tracking::tracked_positions(&reference.positions, &r.input, input)
+        let (moved, bindings) = if same_topology {
+            let bindings = r.bindings.clone().unwrap_or_else(|| tracking::bind(&reference.positions, &r.input));
+            (tracking::bound_positions(&bindings, input, &reference.positions), Some(bindings))
         } else {
-            let stages = self.config.inter.anchor_stages()?;
-            anchor::anchor_mesh(&reference, input, &AnchorParams { stages }).positions
+            let Some(stages) = self.config.inter.anchor_stages() else { return (None, None) };
+            (anchor::anchor_mesh(&reference, input, &AnchorParams { stages }).positions, None)
         };
-        Some(moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect())
+        (Some(moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect()), bindings)
     }
 
     fn intra(&self, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
