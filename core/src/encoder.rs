@@ -437,11 +437,11 @@ fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], 
 }
 
 /// The quantized differences of coefficients `steps` (in quantization steps) from the
-/// reference's quantized coefficients. The difference is what gets rounded, not the
-/// coefficient: a coefficient less than a step from its reference's then costs nothing,
+/// reference's quantized coefficients. The difference is what gets quantized, not the
+/// coefficient: a coefficient within the dead zone of its reference's then costs nothing,
 /// where rounding it first could leave a difference of one either way.
 fn differences_from(steps: &[f64], reference: &[i32]) -> Vec<i32> {
-    steps.iter().zip(reference).map(|(&x, &r)| quantize::round_dead_zone(x - r as f64, quantize::PREDICTED_ROUNDING_BIAS)).collect()
+    steps.iter().zip(reference).map(|(&x, &r)| quantize::truncate_dead_zone(x - r as f64, quantize::PREDICTED_DEAD_ZONE)).collect()
 }
 
 /// Forward lifting of the local displacement components, scaled per level (and, with AQ,
@@ -482,9 +482,9 @@ mod tests {
     }
 
     #[test]
-    fn differences_within_a_step_of_the_reference_are_zero() {
+    fn differences_within_the_dead_zone_of_the_reference_are_zero() {
         // 2.6 rounds to 2 on its own (dead zone), which would leave -1 against a reference of 3.
-        assert_eq!(differences_from(&[2.6, -0.2, 5.0, -4.9], &[3, 0, 3, -3]), vec![0, 0, 2, -1]);
+        assert_eq!(differences_from(&[2.6, -0.2, 5.0, -4.9, 7.5], &[3, 0, 3, -3, 2]), vec![0, 0, 2, 0, 5]);
     }
 
     #[test]
