@@ -4,9 +4,10 @@
 //! breadth-first, each vertex offset by the mean motion of its matched neighbours before
 //! the search; the unmoved vertex's own match wins when it lies closer to its query, since
 //! a wrong prediction next to a fast part, e.g. a ball, otherwise drags still vertices off
-//! their place: on basketball_player that made `NnsMe` lose to `Nns`). The refinement stage (`NnsMeQem`) currently projects each motion-estimated
-//! point onto the input surface (closest point) instead of the paper's QEM collapse; the
-//! QEM refinement replaces it when it lands.
+//! their place: on basketball_player that made `NnsMe` lose to `Nns`). The refinement stage
+//! (`NnsMeQem`) currently projects each motion-estimated point onto the input surface
+//! (closest point) instead of the paper's QEM collapse; the QEM refinement replaces it when
+//! it lands.
 
 use kiddo::SquaredEuclidean;
 

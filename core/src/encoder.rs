@@ -244,7 +244,7 @@ impl SequenceEncoder {
         let same_topology = self.reference.as_ref().is_some_and(|r| tracking::same_connectivity(&r.input, &input));
         let may_predict = self.frame % cfg.intra_period != 0 && self.reference.is_some();
         let anchor_start = Instant::now();
-        let (anchor, bindings) = if may_predict { self.anchor_positions(&input, same_topology) } else { (None, None) };
+        let (anchor, bindings) = may_predict.then(|| self.anchor_positions(&input, same_topology)).flatten().unzip();
         let anchor_seconds = anchor_start.elapsed().as_secs_f64();
         let predicted = anchor.map(|a| self.predicted(&a, &input, &target)).transpose()?;
         let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
@@ -264,7 +264,7 @@ impl SequenceEncoder {
             seconds: start.elapsed().as_secs_f64(),
         };
         let base = Mesh::new(decoder::base_in_world_units(&self.header, &chosen.base), chosen.faces.clone());
-        let bindings = bindings.filter(|_| chosen.frame_type == FrameType::Predicted);
+        let bindings = bindings.flatten().filter(|_| chosen.frame_type == FrameType::Predicted);
         self.reference = Some(Reference { input, base: chosen.base, faces: chosen.faces, coefficients: chosen.coefficients, bindings });
         self.frame += 1;
         Ok(EncodedFrame { unit, reconstruction: chosen.reconstruction, base, stats })
@@ -273,18 +273,18 @@ impl SequenceEncoder {
     /// The current frame's base mesh positions (base grid units) with the reference base
     /// mesh's connectivity, if this frame may be predicted; with constant topology also the
     /// bindings that tracked them, which the next frame reuses if this one is predicted.
-    fn anchor_positions(&self, input: &Mesh, same_topology: bool) -> (Option<Vec<[u32; 3]>>, Option<Bindings>) {
-        let Some(r) = self.reference.as_ref() else { return (None, None) };
+    fn anchor_positions(&self, input: &Mesh, same_topology: bool) -> Option<(Vec<[u32; 3]>, Option<Bindings>)> {
+        let r = self.reference.as_ref()?;
         let base_grid = self.header.grid.coarser(self.header.base_bits);
         let reference = Mesh::new(decoder::base_in_grid_units(&self.header, &r.base), r.faces.clone());
         let (moved, bindings) = if same_topology {
             let bindings = r.bindings.clone().unwrap_or_else(|| tracking::bind(&reference.positions, &r.input));
             (tracking::bound_positions(&bindings, input, &reference.positions), Some(bindings))
         } else {
-            let Some(stages) = self.config.inter.anchor_stages() else { return (None, None) };
+            let stages = self.config.inter.anchor_stages()?;
             (anchor::anchor_mesh(&reference, input, &AnchorParams { stages }).positions, None)
         };
-        (Some(moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect()), bindings)
+        Some((moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect(), bindings))
     }
 
     fn intra(&self, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {

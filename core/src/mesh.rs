@@ -115,6 +115,12 @@ pub fn norm(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()
 }
 
+/// The point with barycentric coordinates `w` in the triangle `corners`.
+#[inline]
+pub fn interpolate(corners: [[f64; 3]; 3], w: [f64; 3]) -> [f64; 3] {
+    add(add(scale(corners[0], w[0]), scale(corners[1], w[1])), scale(corners[2], w[2]))
+}
+
 /// `a / |a|`, or zero when `a` is (numerically) zero.
 #[inline]
 pub fn normalize(a: [f64; 3]) -> [f64; 3] {

@@ -13,7 +13,7 @@
 use rayon::prelude::*;
 
 use crate::bvh::Bvh;
-use crate::mesh::{add, dot, sub, Mesh};
+use crate::mesh::{add, dot, interpolate, sub, Mesh};
 
 /// True when `a` and `b` have the same vertex count and the same triangles in the same order.
 pub fn same_connectivity(a: &Mesh, b: &Mesh) -> bool {
@@ -54,8 +54,7 @@ pub fn bound_positions(bindings: &[Option<Binding>], input: &Mesh, unbound: &[[f
         .map(|(b, &p)| {
             let Some(b) = b else { return p };
             let corners = input.faces[b.triangle as usize].map(|v| input.positions[v as usize]);
-            let point: [f64; 3] = std::array::from_fn(|i| (0..3).map(|k| b.weights[k] * corners[k][i]).sum());
-            add(point, b.offset)
+            add(interpolate(corners, b.weights), b.offset)
         })
         .collect()
 }

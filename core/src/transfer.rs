@@ -23,7 +23,7 @@ use std::ops::Range;
 use rayon::prelude::*;
 
 use crate::bvh::{closest_on_triangle, Bvh};
-use crate::mesh::{add, cross, dot, norm, normalize, scale, sub, Mesh};
+use crate::mesh::{add, cross, dot, interpolate, norm, normalize, scale, sub, Mesh};
 use crate::texture::{Texture, UvMesh};
 
 /// How far around a UV triangle texels are still covered, in texels along each axis: a
@@ -831,10 +831,6 @@ fn nearest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, f64) {
     let t = if len2 > 0.0 { ((ap[0] * ab[0] + ap[1] * ab[1]) / len2).clamp(0.0, 1.0) } else { 0.0 };
     let d = [ap[0] - t * ab[0], ap[1] - t * ab[1]];
     (t, d[0] * d[0] + d[1] * d[1])
-}
-
-fn interpolate(corners: [[f64; 3]; 3], w: [f64; 3]) -> [f64; 3] {
-    add(add(scale(corners[0], w[0]), scale(corners[1], w[1])), scale(corners[2], w[2]))
 }
 
 /// Fills the texels of `texture` that are not `covered` (one flag per texel, row-major from
