@@ -18,7 +18,8 @@ def test_decoder_reproduces_the_encoder_reconstruction_bit_for_bit(sequence):
         assert np.array_equal(rec.positions.view(np.uint64), dec.positions.view(np.uint64))
 
 
-@pytest.mark.parametrize("options", [dict(scheme="loop"), dict(normal_only=False), dict(subdiv=0), dict(bits=16, subdiv=2),
+@pytest.mark.parametrize("options", [dict(scheme="loop"), dict(scheme="midpoint"), dict(subdiv=2, scheme="loop,midpoint"),
+                                     dict(normal_only=False), dict(subdiv=0), dict(bits=16, subdiv=2),
                                      dict(base_bits=8), dict(bits=11, base_bits=11), dict(aq=False),
                                      dict(aq_alpha=1.5, aq_delta=0.3, aq_h=5), dict(intra_period=1)])
 def test_round_trip_holds_for_every_option(options, sequence):
@@ -103,10 +104,15 @@ def test_info_reports_header_and_frame_sizes(sequence):
 
 
 @pytest.mark.parametrize("options", [dict(qp=200), dict(base_ratio=0), dict(base_ratio=1.5), dict(subdiv=9), dict(bits=3), dict(base_bits=13), dict(bits=10, base_bits=11), dict(scheme="cubic"),
-                                     dict(intra_period=0), dict(inter="octree"), dict(aq_h=0), dict(aq_delta=1.5), dict(qp="high")])
+                                     dict(subdiv=3, scheme="loop,loop"), dict(intra_period=0), dict(inter="octree"), dict(aq_h=0), dict(aq_delta=1.5), dict(qp="high")])
 def test_bad_options_raise_value_error(options, sphere):
     with pytest.raises(ValueError):
         dynmesh.encode([sphere], **options)
+
+
+def test_the_header_names_each_iteration_s_scheme(sphere):
+    assert dynmesh.info(dynmesh.encode([sphere], subdiv=3))["header"]["schemes"] == ["midpoint", "midpoint", "loop"]
+    assert dynmesh.info(dynmesh.encode([sphere], subdiv=2, scheme="loop,midpoint"))["header"]["schemes"] == ["loop", "midpoint"]
 
 
 def test_unknown_option_is_refused(sphere):

@@ -19,7 +19,7 @@ use dynmesh::encoder::{EncoderConfig, FrameStats, InterMode, SequenceEncoder};
 use dynmesh::error::DecodeError as CoreDecodeError;
 use dynmesh::mesh::Mesh;
 use dynmesh::metrics;
-use dynmesh::subdivide::Scheme;
+use dynmesh::subdivide::SchemeChoice;
 
 create_exception!(_core, DecodeError, PyValueError, "A stream that cannot be decoded; args are (message, frame or None, byte offset).");
 
@@ -67,20 +67,6 @@ fn arrays_of<'py>(py: Python<'py>, m: Mesh) -> MeshArrays<'py> {
     (p.into_pyarray(py), f.into_pyarray(py))
 }
 
-fn scheme_of(name: &str) -> PyResult<Scheme> {
-    match name {
-        "midpoint" => Ok(Scheme::Midpoint),
-        "loop" => Ok(Scheme::Loop),
-        _ => Err(PyValueError::new_err(format!("unknown subdivision scheme {name:?} (midpoint or loop)"))),
-    }
-}
-
-fn scheme_name(s: Scheme) -> &'static str {
-    match s {
-        Scheme::Midpoint => "midpoint",
-        Scheme::Loop => "loop",
-    }
-}
 
 fn frame_type_name(t: Option<FrameType>) -> &'static str {
     match t {
@@ -114,8 +100,8 @@ fn header_dict<'py>(py: Python<'py>, h: &SequenceHeader) -> PyResult<Bound<'py, 
     d.set_item("step", h.grid.step)?;
     d.set_item("bits", h.grid.bits)?;
     d.set_item("base_bits", h.base_bits)?;
-    d.set_item("subdiv_iterations", h.subdiv_iterations)?;
-    d.set_item("scheme", scheme_name(h.scheme))?;
+    d.set_item("subdiv_iterations", h.subdiv_iterations())?;
+    d.set_item("schemes", h.schemes.iter().map(|s| s.name()).collect::<Vec<_>>())?;
     d.set_item("components", h.components)?;
     d.set_item("aq", h.aq.is_some())?;
     if let Some(aq) = h.aq {
@@ -138,7 +124,7 @@ fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
             "qp" => c.qp = value.extract()?,
             "base_ratio" => c.base_ratio = value.extract()?,
             "subdiv" => c.subdiv_iterations = value.extract()?,
-            "scheme" => c.scheme = scheme_of(&value.extract::<String>()?)?,
+            "scheme" => c.scheme = SchemeChoice::parse(&value.extract::<String>()?).map_err(PyValueError::new_err)?,
             "bits" => c.bits = value.extract()?,
             "base_bits" => c.base_bits = value.extract()?,
             "normal_only" => c.normal_only = value.extract()?,
@@ -298,7 +284,7 @@ fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("qp", c.qp)?;
     d.set_item("base_ratio", c.base_ratio)?;
     d.set_item("subdiv", c.subdiv_iterations)?;
-    d.set_item("scheme", scheme_name(c.scheme))?;
+    d.set_item("scheme", c.scheme.spec())?;
     d.set_item("bits", c.bits)?;
     d.set_item("base_bits", c.base_bits)?;
     d.set_item("normal_only", c.normal_only)?;

@@ -11,7 +11,8 @@ use crate::quantize::AqParams;
 use crate::subdivide::Scheme;
 
 pub const MAGIC: &[u8; 4] = b"DMSH";
-pub const VERSION: u8 = 1;
+/// Version 2: one subdivision scheme per iteration (version 1 had one for all).
+pub const VERSION: u8 = 2;
 /// Size of the fixed part of a frame unit: type, payload length, CRC.
 pub const UNIT_OVERHEAD: usize = 1 + 4 + 4;
 /// Subdivision iterations the format allows (each multiplies the face count by four).
@@ -25,12 +26,18 @@ pub struct SequenceHeader {
     /// Bit depth of the base mesh positions: a coarser grid of `2^base_bits` steps whose
     /// points are every `2^(grid.bits - base_bits)`-th point of `grid`.
     pub base_bits: u32,
-    pub subdiv_iterations: u32,
-    pub scheme: Scheme,
+    /// The scheme of each subdivision iteration, coarsest first.
+    pub schemes: Vec<Scheme>,
     /// 1: only the normal component of each displacement is coded; 3: all of (n, t, b).
     pub components: u8,
     /// Adaptive displacement quantization, if on.
     pub aq: Option<AqParams>,
+}
+
+impl SequenceHeader {
+    pub fn subdiv_iterations(&self) -> u32 {
+        self.schemes.len() as u32
+    }
 }
 
 /// Kind of a frame unit.
@@ -154,11 +161,10 @@ pub fn write_header(h: &SequenceHeader) -> Vec<u8> {
     w.f64(h.grid.step);
     w.u8(h.grid.bits as u8);
     w.u8(h.base_bits as u8);
-    w.u8(h.subdiv_iterations as u8);
-    w.u8(match h.scheme {
-        Scheme::Midpoint => 0,
-        Scheme::Loop => 1,
-    });
+    w.u8(h.schemes.len() as u8);
+    for &s in &h.schemes {
+        w.u8(s as u8);
+    }
     w.u8(h.components);
     let aq = h.aq.unwrap_or_default();
     w.u8(h.aq.is_some() as u8);
@@ -186,7 +192,11 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
     let bits = r.u8("position bits")? as u32;
     let base_bits = r.u8("base mesh position bits")? as u32;
     let subdiv_iterations = r.u8("subdivision iterations")? as u32;
-    let scheme_code = r.u8("subdivision scheme")?;
+    if subdiv_iterations > MAX_SUBDIV {
+        return Err(r.error(format!("{subdiv_iterations} subdivision iterations (at most {MAX_SUBDIV})")));
+    }
+    let schemes_at = data.len() - r.remaining();
+    let scheme_codes = r.bytes(subdiv_iterations as usize, "subdivision schemes")?;
     let components = r.u8("displacement components")?;
     let aq_flag = r.u8("adaptive quantization flag")?;
     let aq = AqParams { alpha: r.f64("AQ alpha")?, delta: r.f64("AQ delta")?, h: r.f64("AQ h")? };
@@ -195,22 +205,25 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
     if crc != crc32fast::hash(&data[..end]) {
         return Err(DecodeError::new(None, end as u64, "sequence header CRC mismatch"));
     }
-    let scheme = match scheme_code {
-        0 => Scheme::Midpoint,
-        1 => Scheme::Loop,
-        s => return Err(DecodeError::new(None, 44, format!("unknown subdivision scheme {s}"))),
-    };
+    let schemes = scheme_codes
+        .iter()
+        .enumerate()
+        .map(|(i, &c)| match c {
+            0 => Ok(Scheme::Midpoint),
+            1 => Ok(Scheme::Loop),
+            s => Err(DecodeError::new(None, (schemes_at + i) as u64, format!("unknown subdivision scheme {s}"))),
+        })
+        .collect::<Result<Vec<_>, _>>()?;
     let header = SequenceHeader {
         frame_count,
         grid: Grid { origin, step, bits },
         base_bits,
-        subdiv_iterations,
-        scheme,
+        schemes,
         components,
         aq: (aq_flag == 1).then_some(aq),
     };
     if aq_flag > 1 || (aq_flag == 1 && !aq.is_valid()) {
-        return Err(DecodeError::new(None, 46, "invalid adaptive quantization parameters"));
+        return Err(DecodeError::new(None, (schemes_at + header.schemes.len() + 1) as u64, "invalid adaptive quantization parameters"));
     }
     validate_header(&header).map_err(|e| DecodeError::new(None, 4, e))?;
     Ok((header, end + 4))
@@ -225,9 +238,6 @@ fn validate_header(h: &SequenceHeader) -> Result<(), String> {
     }
     if !BITS_RANGE.contains(&h.base_bits) || h.base_bits > h.grid.bits {
         return Err(format!("base mesh position bits {} out of range", h.base_bits));
-    }
-    if h.subdiv_iterations > MAX_SUBDIV {
-        return Err(format!("{} subdivision iterations (at most {MAX_SUBDIV})", h.subdiv_iterations));
     }
     if h.components != 1 && h.components != 3 {
         return Err(format!("{} displacement components (1 or 3)", h.components));
@@ -309,8 +319,7 @@ mod tests {
             frame_count: 2,
             grid: Grid { origin: [1.0, -2.0, 0.5], step: 0.01, bits: 12 },
             base_bits: 10,
-            subdiv_iterations: 3,
-            scheme: Scheme::Midpoint,
+            schemes: vec![Scheme::Midpoint, Scheme::Midpoint, Scheme::Loop],
             components: 1,
             aq: Some(AqParams { alpha: 1.25, delta: 0.25, h: 6.0 }),
         }

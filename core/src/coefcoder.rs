@@ -130,7 +130,7 @@ mod tests {
     #[test]
     fn round_trip_with_zero_levels_and_large_values() {
         let p = vec![[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0], [0.0, 2.0, 0.0]];
-        let s = subdivide(&p, &[[0, 1, 2], [0, 2, 3]], 3, Scheme::Midpoint);
+        let s = subdivide(&p, &[[0, 1, 2], [0, 2, 3]], &[Scheme::Midpoint; 3]);
         for comps in [1, 3] {
             let n = s.positions.len();
             let q: Vec<i32> = (0..n * comps)
@@ -150,7 +150,7 @@ mod tests {
     #[test]
     fn truncated_data_is_detected() {
         let p = vec![[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0]];
-        let s = subdivide(&p, &[[0, 1, 2]], 4, Scheme::Midpoint);
+        let s = subdivide(&p, &[[0, 1, 2]], &[Scheme::Midpoint; 4]);
         let q: Vec<i32> = (0..s.positions.len()).map(|i| (i % 5) as i32 * 9 - 20).collect();
         let mut e = Encoder::new();
         encode(&mut e, &q, 1, &s);

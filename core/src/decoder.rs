@@ -197,9 +197,9 @@ impl Decoder {
             }
             (FrameType::Predicted, None) => return Err(error(p.base_offset, "predicted frame without its reference")),
         };
-        let too_big = faces.len().saturating_mul(1usize << (2 * h.subdiv_iterations)) > face_allowance(unit.payload.len());
+        let too_big = faces.len().saturating_mul(1usize << (2 * h.subdiv_iterations())) > face_allowance(unit.payload.len());
         if faces.is_empty() || too_big {
-            let reason = format!("base mesh of {} faces cannot be subdivided {} times", faces.len(), h.subdiv_iterations);
+            let reason = format!("base mesh of {} faces cannot be subdivided {} times", faces.len(), h.subdiv_iterations());
             return Err(error(p.base_offset, &reason));
         }
         let sub = subdivided_base(h, &positions, &faces);
@@ -270,7 +270,7 @@ pub fn base_in_world_units(h: &SequenceHeader, positions: &[[u32; 3]]) -> Vec<[f
 
 /// Subdivision of the decoded base mesh (integer positions on the base mesh grid).
 pub fn subdivided_base(h: &SequenceHeader, positions: &[[u32; 3]], faces: &[[u32; 3]]) -> Subdivision {
-    subdivide(&base_in_grid_units(h, positions), faces, h.subdiv_iterations, h.scheme)
+    subdivide(&base_in_grid_units(h, positions), faces, &h.schemes)
 }
 
 /// The quantization scale of every vertex of `sub`: its level's scale, times its

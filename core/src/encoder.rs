@@ -19,9 +19,10 @@ use crate::grid::{Grid, BITS_RANGE};
 use crate::mesh::{cross, norm, sub, Mesh};
 use crate::motion;
 use crate::quantize::{self, AqParams};
-use crate::subdivide::{Scheme, Subdivision};
+use crate::subdivide::{SchemeChoice, Subdivision};
 use crate::tracking::{self, Bindings};
 use crate::transform;
+use crate::weld::weld;
 
 /// How predicted frames find their base mesh (the paper's ablation switches).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,7 +68,8 @@ pub struct EncoderConfig {
     /// Base mesh faces as a fraction of the input's.
     pub base_ratio: f64,
     pub subdiv_iterations: u32,
-    pub scheme: Scheme,
+    /// The subdivision scheme of each iteration.
+    pub scheme: SchemeChoice,
     /// Position bit depth of the grid over the sequence box.
     pub bits: u32,
     /// Position bit depth of the base mesh (at most `bits`): coarser base positions cost
@@ -92,7 +94,7 @@ impl Default for EncoderConfig {
             qp: 28,
             base_ratio: 1.0 / 6.0,
             subdiv_iterations: 3,
-            scheme: Scheme::Midpoint,
+            scheme: SchemeChoice::Mixed,
             bits: 12,
             base_bits: 9,
             normal_only: true,
@@ -117,6 +119,7 @@ impl EncoderConfig {
         if self.subdiv_iterations > bitstream::MAX_SUBDIV {
             return err(format!("subdivision iterations {} (at most {})", self.subdiv_iterations, bitstream::MAX_SUBDIV));
         }
+        self.scheme.schemes(self.subdiv_iterations).map_err(InputError)?;
         if !BITS_RANGE.contains(&self.bits) {
             return err(format!("position bits {} out of range {:?}", self.bits, BITS_RANGE));
         }
@@ -143,8 +146,7 @@ impl EncoderConfig {
             frame_count,
             grid: Grid::over_box(min, max, self.bits),
             base_bits: self.base_bits,
-            subdiv_iterations: self.subdiv_iterations,
-            scheme: self.scheme,
+            schemes: self.scheme.schemes(self.subdiv_iterations).expect("validated configuration"),
             components: if self.normal_only { 1 } else { 3 },
             aq: self.aq,
         }
@@ -238,8 +240,12 @@ impl SequenceEncoder {
     pub fn encode(&mut self, mesh: &Mesh) -> Result<EncodedFrame, InputError> {
         let start = Instant::now();
         mesh.validate()?;
+        let welded = weld(mesh);
+        if welded.faces.is_empty() {
+            return Err(InputError("every face is degenerate once coincident vertices are merged".into()));
+        }
         let (h, cfg) = (&self.header, &self.config);
-        let input = Mesh::new(mesh.positions.iter().map(|&p| h.grid.to_grid(p)).collect(), mesh.faces.clone());
+        let input = Mesh::new(welded.positions.iter().map(|&p| h.grid.to_grid(p)).collect(), welded.faces);
         let target = Bvh::new(&input.positions, &input.faces);
         let same_topology = self.reference.as_ref().is_some_and(|r| tracking::same_connectivity(&r.input, &input));
         let may_predict = self.frame % cfg.intra_period != 0 && self.reference.is_some();

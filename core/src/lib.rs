@@ -10,6 +10,7 @@
 
 pub mod error;
 pub mod mesh;
+pub mod weld;
 pub mod ec;
 pub mod grid;
 pub mod quadric;

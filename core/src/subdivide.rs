@@ -12,14 +12,73 @@
 
 use crate::mesh::{edge_key, EdgeMap};
 
-/// How new vertices are placed.
+/// How one iteration places its new vertices.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Scheme {
-    /// New vertices at edge midpoints; old vertices stay (the V-DMC default).
+    /// New vertices at edge midpoints; old vertices stay.
     Midpoint,
     /// Loop subdivision: smooths the surface; boundary and non-manifold edges fall back to
     /// midpoints, boundary vertices to the 1/8-3/4-1/8 rule.
     Loop,
+}
+
+impl Scheme {
+    pub const NAMES: [&'static str; 2] = ["midpoint", "loop"];
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        [Self::Midpoint, Self::Loop].into_iter().find(|s| s.name() == name)
+    }
+}
+
+/// The schemes of a subdivision's iterations, as an encoder option.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum SchemeChoice {
+    /// Midpoint on every iteration but the last, Loop on the last: the MPEG test model's
+    /// choice (`lodAdaptiveSubdivisionFlag`), which smooths only the finest level, where
+    /// the surface is already close to the input.
+    Mixed,
+    /// One scheme for every iteration.
+    All(Scheme),
+    /// One scheme per iteration, coarsest first.
+    PerIteration(Vec<Scheme>),
+}
+
+impl SchemeChoice {
+    /// Parses `mixed`, a scheme name, or a comma-separated list of names, one per iteration.
+    pub fn parse(spec: &str) -> Result<Self, String> {
+        let names: Vec<&str> = spec.split(',').map(str::trim).collect();
+        let unknown = || format!("unknown subdivision scheme {spec:?} (mixed, {}, or a comma-separated list of them)", Scheme::NAMES.join(", "));
+        match names.as_slice() {
+            ["mixed"] => Ok(Self::Mixed),
+            [one] => Scheme::from_name(one).map(Self::All).ok_or_else(unknown),
+            many => many.iter().map(|n| Scheme::from_name(n)).collect::<Option<Vec<_>>>().map(Self::PerIteration).ok_or_else(unknown),
+        }
+    }
+
+    /// The option's spelling, which [`SchemeChoice::parse`] reads back.
+    pub fn spec(&self) -> String {
+        match self {
+            Self::Mixed => "mixed".into(),
+            Self::All(s) => s.name().into(),
+            Self::PerIteration(v) => v.iter().map(|s| s.name()).collect::<Vec<_>>().join(","),
+        }
+    }
+
+    /// The scheme of each of `iterations` iterations; an error when a per-iteration list
+    /// has another length.
+    pub fn schemes(&self, iterations: u32) -> Result<Vec<Scheme>, String> {
+        let n = iterations as usize;
+        match self {
+            Self::Mixed => Ok((0..n).map(|i| if i + 1 == n { Scheme::Loop } else { Scheme::Midpoint }).collect()),
+            Self::All(s) => Ok(vec![*s; n]),
+            Self::PerIteration(v) if v.len() == n => Ok(v.clone()),
+            Self::PerIteration(v) => Err(format!("{} subdivision schemes given for {n} iterations", v.len())),
+        }
+    }
 }
 
 /// A subdivided mesh with its level-of-detail structure.
@@ -45,15 +104,15 @@ impl Subdivision {
     }
 }
 
-/// Subdivides `(positions, faces)` `iterations` times with `scheme`.
-pub fn subdivide(positions: &[[f64; 3]], faces: &[[u32; 3]], iterations: u32, scheme: Scheme) -> Subdivision {
+/// Subdivides `(positions, faces)` once per entry of `schemes`, with that scheme.
+pub fn subdivide(positions: &[[f64; 3]], faces: &[[u32; 3]], schemes: &[Scheme]) -> Subdivision {
     let mut s = Subdivision {
         positions: positions.to_vec(),
         faces: faces.to_vec(),
         parents: Vec::new(),
         lod_offsets: vec![0, positions.len()],
     };
-    for _ in 0..iterations {
+    for &scheme in schemes {
         split_once(&mut s, scheme);
     }
     s
@@ -213,7 +272,7 @@ mod tests {
     #[test]
     fn midpoint_levels_are_contiguous_and_new_vertices_sit_on_their_parent_edges() {
         let (p, f) = quad();
-        let s = subdivide(&p, &f, 2, Scheme::Midpoint);
+        let s = subdivide(&p, &f, &[Scheme::Midpoint; 2]);
         // 4 + 5 edges -> 9 vertices, 9 + 16 edges -> 25 vertices.
         assert_eq!(s.lod_offsets, vec![0, 4, 9, 25]);
         assert_eq!(s.faces.len(), 32);
@@ -231,7 +290,7 @@ mod tests {
     #[test]
     fn subdivided_faces_keep_orientation() {
         let (p, f) = quad();
-        let s = subdivide(&p, &f, 1, Scheme::Midpoint);
+        let s = subdivide(&p, &f, &[Scheme::Midpoint]);
         let normal_z = |t: &[u32; 3]| {
             let [a, b, c] = t.map(|v| s.positions[v as usize]);
             (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
@@ -242,12 +301,12 @@ mod tests {
     #[test]
     fn loop_keeps_a_flat_patch_flat_and_moves_interior_vertices() {
         let (p, f) = quad();
-        let s = subdivide(&p, &f, 2, Scheme::Loop);
+        let s = subdivide(&p, &f, &[Scheme::Loop; 2]);
         assert_eq!(s.lod_offsets, vec![0, 4, 9, 25]);
         assert!(s.positions.iter().all(|q| q[2] == 0.0));
         let closed = [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, -1.0, 0.0]];
         let tet = vec![[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]];
-        let s = subdivide(&closed, &tet, 1, Scheme::Loop);
+        let s = subdivide(&closed, &tet, &[Scheme::Loop]);
         assert_ne!(s.positions[0], closed[0]);
     }
 
@@ -282,7 +341,7 @@ mod tests {
             }
         }
         for scheme in [Scheme::Midpoint, Scheme::Loop] {
-            let s = subdivide(&p, &f, 2, scheme);
+            let s = subdivide(&p, &f, &[scheme; 2]);
             let (suv, suv_faces) = subdivide_uv(&uv, &uv_faces, 2);
             assert_eq!(suv_faces.len(), s.faces.len());
             if scheme == Scheme::Loop {
@@ -314,9 +373,33 @@ mod tests {
     }
 
     #[test]
+    fn scheme_choices_parse_and_resolve_per_iteration() {
+        use Scheme::{Loop, Midpoint};
+        assert_eq!(SchemeChoice::parse("mixed").unwrap().schemes(3).unwrap(), vec![Midpoint, Midpoint, Loop]);
+        assert_eq!(SchemeChoice::parse("loop").unwrap().schemes(2).unwrap(), vec![Loop, Loop]);
+        let list = SchemeChoice::parse("loop, midpoint").unwrap();
+        assert_eq!(list.schemes(2).unwrap(), vec![Loop, Midpoint]);
+        assert_eq!(SchemeChoice::parse(&list.spec()).unwrap(), list);
+        assert!(list.schemes(3).unwrap_err().contains("2 subdivision schemes given for 3"));
+        assert!(SchemeChoice::parse("cubic").is_err());
+        assert!(SchemeChoice::parse("loop,,midpoint").is_err());
+        assert_eq!(SchemeChoice::Mixed.schemes(0).unwrap(), vec![]);
+    }
+
+    #[test]
+    fn a_mixed_subdivision_smooths_only_its_last_level() {
+        let (p, f) = quad();
+        let mixed = subdivide(&p, &f, &[Scheme::Midpoint, Scheme::Loop]);
+        let midpoint = subdivide(&p, &f, &[Scheme::Midpoint]);
+        let looped = subdivide(&midpoint.positions, &midpoint.faces, &[Scheme::Loop]);
+        assert_eq!(mixed.positions, looped.positions);
+        assert_eq!(mixed.lod_offsets, vec![0, 4, 9, 25]);
+    }
+
+    #[test]
     fn zero_iterations_return_the_base_mesh() {
         let (p, f) = quad();
-        let s = subdivide(&p, &f, 0, Scheme::Midpoint);
+        let s = subdivide(&p, &f, &[]);
         assert_eq!(s.lod_count(), 1);
         assert_eq!(s.faces, f);
     }

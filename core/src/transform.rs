@@ -65,7 +65,7 @@ mod tests {
 
     fn sub() -> Subdivision {
         let p = vec![[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0], [0.0, 2.0, 0.0]];
-        subdivide(&p, &[[0, 1, 2], [0, 2, 3]], 3, Scheme::Midpoint)
+        subdivide(&p, &[[0, 1, 2], [0, 2, 3]], &[Scheme::Midpoint; 3])
     }
 
     #[test]

@@ -14,7 +14,7 @@ fn ball() -> Mesh {
 fn ball_of(levels: u32) -> Mesh {
     let p = vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
     let f = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
-    let s = dynmesh::subdivide::subdivide(&p, &f, levels, dynmesh::subdivide::Scheme::Midpoint);
+    let s = dynmesh::subdivide::subdivide(&p, &f, &vec![dynmesh::subdivide::Scheme::Midpoint; levels as usize]);
     let pos = s.positions.iter().map(|&q| dynmesh::mesh::normalize(q)).collect();
     Mesh::new(pos, s.faces)
 }
@@ -122,10 +122,9 @@ fn a_header_asking_for_more_subdivision_than_the_frame_justifies_is_refused() {
     let cfg = EncoderConfig { subdiv_iterations: 0, base_ratio: 1.0, ..EncoderConfig::default() };
     let mut s = stream_of(&cfg, &[ball_of(4)]);
     let (h, start) = bitstream::read_header(&s).unwrap();
-    let bigger = bitstream::SequenceHeader { subdiv_iterations: bitstream::MAX_SUBDIV, ..h };
-    let header = bitstream::write_header(&bigger);
-    assert_eq!(header.len(), start);
-    s[..start].copy_from_slice(&header);
+    let schemes = vec![dynmesh::subdivide::Scheme::Midpoint; bitstream::MAX_SUBDIV as usize];
+    let header = bitstream::write_header(&bitstream::SequenceHeader { schemes, ..h });
+    s.splice(..start, header);
     let e = decode_all(&s).unwrap_err();
     assert_eq!(e.frame, Some(0));
     assert!(e.to_string().contains("cannot be subdivided"), "{e}");

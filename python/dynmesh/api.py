@@ -96,8 +96,9 @@ def encode_frames(
 ) -> EncodeResult:
     """Encodes a sequence (Mesh objects or (positions, faces) pairs) into one stream.
 
-    Geometry options (see ``DEFAULTS``): qp, base_ratio, subdiv, scheme ("midpoint" or
-    "loop"), bits (position grid), base_bits (base mesh positions, at most bits),
+    Geometry options (see ``DEFAULTS``): qp, base_ratio, subdiv, scheme ("mixed" =
+    midpoint then Loop on the last iteration, "midpoint", "loop", or a comma-separated list
+    with one per iteration), bits (position grid), base_bits (base mesh positions, at most bits),
     normal_only, intra_period (1 = every frame intra), inter ("none", "nns", "nns+me",
     "nns+me+qem"), rd_slope (dB per rate doubling, for the intra/inter decision), aq
     (adaptive quantization) with aq_alpha, aq_delta, aq_h.

@@ -93,7 +93,7 @@ def cmd_info(a) -> dict:
         h = result["header"]
         print(f"{a.input}: {result['bytes']} bytes, {h['frame_count']} frames, {h['bits']}-bit positions "
               f"({h['base_bits']}-bit base mesh), "
-              f"{h['subdiv_iterations']} {h['scheme']} subdivision(s), {h['components']} displacement component(s)")
+              f"{h['subdiv_iterations']} subdivision(s) ({','.join(h['schemes']) or 'none'}), {h['components']} displacement component(s)")
         rows = [{"frame": i, **f} for i, f in enumerate(result["frames"])]
         print(_table(rows, [("frame", "frame", "d"), ("type", "type", "s"), ("qp", "qp", "d"),
                             ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
@@ -240,7 +240,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--qp", type=int, default=d["qp"], help=f"displacement quantization parameter; +6 doubles the step (default {d['qp']})")
     p.add_argument("--base-ratio", type=float, default=d["base_ratio"], help=f"base mesh faces / input faces (default {d['base_ratio']:g})")
     p.add_argument("--subdiv", type=int, default=d["subdiv"], help=f"subdivision iterations (default {d['subdiv']})")
-    p.add_argument("--scheme", choices=["midpoint", "loop"], default=d["scheme"], help="subdivision scheme (default midpoint)")
+    p.add_argument("--scheme", default=d["scheme"],
+                   help="subdivision scheme: mixed (midpoint on every iteration but the last, Loop on the last, as the "
+                        "MPEG test model does), midpoint, loop, or a comma-separated list with one per iteration "
+                        f"(default {d['scheme']})")
     p.add_argument("--bits", type=int, default=d["bits"], help=f"position bits over the sequence box (default {d['bits']})")
     p.add_argument("--base-bits", type=int, default=d["base_bits"],
                    help=f"base mesh position bits, at most --bits (default {d['base_bits']})")
