@@ -6,6 +6,7 @@ the whole file runs in well under a minute.
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ import pytest
 from dynmesh import cli, evaluate, report
 from dynmesh.io import write_mesh
 
-from conftest import wobbly_sequence
+from conftest import SHARED_DATA, shared_sequence, wobbly_sequence
 
 EXPERIMENT = """\
 anchor = "dm"
@@ -218,6 +219,163 @@ def test_interrupted_experiment_keeps_finished_runs(experiment, tmp_path, monkey
     monkeypatch.setattr(evaluate, "measure", original)
     records = evaluate.run_experiment(evaluate.load_experiment(experiment), out)
     assert len(records) == 4 and sum(count_encodes.values()) == 2 + 2  # 2 before the interrupt, 2 after
+
+
+# ---------------------------------------------------------------- points from a CSV file
+
+# A points variant and a second sequence ("still", one frame) that its file has no rows for;
+# appended to EXPERIMENT (TOML lets [[sequences]] continue after the variants).
+POINTS_VARIANT = """
+[[variants]]
+name = "tm"
+codec = "points"
+description = "published points"
+csv = "points.csv"
+where = { cond = "AI" }
+
+[[sequences]]
+name = "still"
+path = "frames"
+count = 1
+peak = 2.5
+"""
+
+POINTS_HEADER = "seq,cond,rate,bytes,mbps,d1,d2,enc_s_per_frame,dec_s_per_frame,inter_frames,peak"
+
+
+def points_row(seq, cond, rate, size, d1, d2, enc=2.0, dec=0.5, peak=2.5) -> str:
+    """One CSV line; Mbit/s from ``size`` bytes over the 2 frames of "wobbly" at 30 fps."""
+    return f"{seq},{cond},{rate},{size},{8 * size / 2 * 30 / 1e6!r},{d1},{d2},{enc},{dec},0,{peak}"
+
+
+@pytest.fixture
+def points_experiment(experiment):
+    """The experiment with the points variant "tm" and its CSV: lines 2-3 the AI rows of
+    "wobbly", 4-5 its LD rows, 6 a sequence the experiment does not have."""
+    rows = [points_row("wobbly", "AI", "R1", 5000, 60.5, 64.25), points_row("wobbly", "AI", "R2", 9000, 70.5, 74.0),
+            points_row("wobbly", "LD", "R1", 4000, 60.0, 64.0), points_row("wobbly", "LD", "R2", 8000, 70.0, 73.5),
+            points_row("other", "AI", "R1", 7000, 65.0, 68.0)]
+    (experiment.parent / "points.csv").write_text("\n".join([POINTS_HEADER] + rows) + "\n")
+    experiment.write_text(experiment.read_text() + POINTS_VARIANT)
+    return experiment
+
+
+def test_points_variant_takes_the_kept_rows_of_the_experiments_sequences(points_experiment, monkeypatch):
+    monkeypatch.chdir("/")  # the CSV is relative to the experiment file too
+    exp = evaluate.load_experiment(points_experiment)
+    tm = exp.variant("tm")
+    assert tm.codec == "points" and tm.source == "points.csv" and tm.where == {"cond": "AI"} and tm.rates == []
+    assert [r.variant for r in evaluate.plan_runs(exp)].count("tm") == 0  # never run
+    # The AI rows of "wobbly" only: not the LD rows, nothing for "other" (not in the
+    # experiment) nor for "still" (not in the file).
+    assert [(p["sequence"], p["rate"], p["d1_psnr"]) for p in tm.points] == [("wobbly", "R1", 60.5),
+                                                                               ("wobbly", "R2", 70.5)]
+    first = tm.points[0]
+    assert first == {"schema": evaluate.SCHEMA, "sequence": "wobbly", "variant": "tm", "codec": "points",
+                     "source": "points.csv", "rate": "R1", "frames": 2, "peak": 2.5, "fps": 30.0, "bytes": 5000,
+                     "bits_per_frame": pytest.approx(20000.0), "mbps": pytest.approx(0.6), "d1_psnr": 60.5,
+                     "d2_psnr": 64.25, "encode_s_per_frame": 2.0, "decode_s_per_frame": 0.5}
+
+    # Other column names through `columns`; the optional columns (bytes, times, peak) may be absent.
+    (points_experiment.parent / "named.csv").write_text("name,level,rate_mbit,D1,D2\nwobbly,q1,0.5,61,65\n")
+    points_experiment.write_text(points_experiment.read_text() + '[[variants]]\nname = "named"\ncodec = "points"\n'
+                                 'csv = "named.csv"\ncolumns = { sequence = "name", rate = "level", '
+                                 'mbps = "rate_mbit", d1 = "D1", d2 = "D2" }\n')
+    (point,) = evaluate.load_experiment(points_experiment).variant("named").points
+    assert point["rate"] == "q1" and point["mbps"] == 0.5 and (point["d1_psnr"], point["d2_psnr"]) == (61, 65)
+    assert point["peak"] == 2.5  # the sequence's: the file states none
+    assert not {"bytes", *evaluate.TIMING_FIELDS} & set(point)
+
+
+def test_points_variant_in_results_and_report_as_test_and_as_anchor(experiment, tmp_path, count_encodes):
+    out, docs = tmp_path / "out", tmp_path / "docs"
+    assert eval_cli(experiment, "--out", out) == 0
+    dm = [r for r in evaluate.load_results(out)["runs"] if r["variant"] == "dm"]
+    # Published points 10 % cheaper than dm at the same PSNRs (LD rows twice as dear: filtered out).
+    rows = [points_row("wobbly", cond, r["rate"], round(factor * r["bytes"]), r["d1_psnr"], r["d2_psnr"])
+            for cond, factor in (("AI", 0.9), ("LD", 2.0)) for r in dm]
+    (tmp_path / "points.csv").write_text("\n".join([POINTS_HEADER] + rows) + "\n")
+    experiment.write_text(experiment.read_text() + POINTS_VARIANT)
+
+    assert eval_cli(experiment, "--out", out, "--report", docs) == 0
+    assert count_encodes == {"dynmesh": 2 + 2, "draco": 2 + 2}  # wobbly's runs reused, still's measured, tm none
+    assert not list((out / "runs").glob("*__tm__*"))  # points are not cached
+    results = evaluate.load_results(out)
+    assert [(r["sequence"], r["variant"]) for r in results["runs"]] == (  # report order, points among the runs
+        [("wobbly", v) for v in ("dm", "dm", "draco", "draco", "tm", "tm")]
+        + [("still", v) for v in ("dm", "dm", "draco", "draco")])
+    tm = [r for r in results["runs"] if r["variant"] == "tm"]
+    assert [(r["rate"], r["source"], r["d1_psnr"]) for r in tm] == [(r["rate"], "points.csv", r["d1_psnr"]) for r in dm]
+    assert results["variants"][2] == {"name": "tm", "codec": "points", "source": "points.csv", "where": {"cond": "AI"}}
+    table = (out / "results.csv").read_text().splitlines()
+    assert "source" in table[0].split(",")
+    assert sum(",tm,points,R" in line and "points.csv" in line for line in table) == 2
+
+    rows = {(r["sequence"], r["variant"]): r for r in report.bd_rows(results)}
+    assert rows["wobbly", "tm"]["d1_bd"] == pytest.approx(-10.0, abs=0.05)
+    assert rows["wobbly", "tm"]["d2_bd"] == pytest.approx(-10.0, abs=0.05)
+    assert rows["wobbly", "tm"]["enc_ratio"] is not None  # the file's times take part as well
+    assert rows["still", "tm"]["d1_bd"] is None and rows["still", "tm"]["d1_note"] == "no points of tm"
+    assert rows["Average", "tm"]["d1_note"] == "over 1 of 2 sequences"
+    page = (docs / "results.md").read_text()
+    assert "| tm | points | rows with cond=AI | read from `points.csv` |" in page
+    assert "| tm | R1 |" in page and "No points for this sequence: tm." in page
+    assert "still, tm, D1: no points of tm" in page
+    assert "except 2 points taken from files" in page and "8 runs, 12 coded frames" in page  # totals: measured runs
+
+    # As the anchor: the measured variant against the points, read the other way round.
+    experiment.write_text(experiment.read_text().replace('anchor = "dm"', 'anchor = "tm"'))
+    assert eval_cli(experiment, "--out", out) == 0
+    rows = {(r["sequence"], r["variant"]): r for r in report.bd_rows(evaluate.load_results(out))}
+    assert rows["wobbly", "dm"]["d1_bd"] == pytest.approx(100 * (1 / 0.9 - 1), abs=0.05)
+    assert rows["still", "dm"]["d2_note"] == "no points of tm"
+
+    # --report-only rebuilds the page from results.json, points included.
+    (docs / "results.md").unlink()
+    assert eval_cli(experiment, "--out", out, "--report", docs, "--report-only") == 0
+    page = (docs / "results.md").read_text()
+    assert "## BD-rate against tm" in page and "| tm (anchor) | points |" in page and "| tm | R2 |" in page
+    assert count_encodes == {"dynmesh": 4, "draco": 4}
+
+
+@pytest.mark.parametrize("target, old, new, message", [
+    ("csv", ",d2,", ",", "points.csv: line 1: no column(s) d2"),
+    ("csv", ",70.5,", ",abc,", "points.csv: line 3: column 'd1': 'abc' is not a number"),
+    ("csv", ",9000,", ",9e3,", "points.csv: line 3: column 'bytes': '9e3' is not an integer"),
+    ("toml", 'csv = "points.csv"', 'csv = "nowhere.csv"', "csv 'nowhere.csv': cannot read"),
+    ("toml", 'where = { cond = "AI" }', 'where = { condition = "AI" }', "points.csv: line 1: no column(s) condition"),
+    ("toml", 'where = { cond = "AI" }', 'columns = { bytes = "size" }', "points.csv: line 1: no column(s) size"),
+    ("toml", 'where = { cond = "AI" }', "", "points.csv: line 4: sequence 'wobbly' rate 'R1' already on line 2"),
+    ("toml", 'where = { cond = "AI" }', 'where = { cond = 1 }', "'where.cond' must be str"),
+    ("toml", 'csv = "points.csv"', 'csv = "points.csv"\nrates = "dm"', "unknown key(s) rates"),
+    ("csv", ",0,2.5\nwobbly,AI,R2", ",0,2.6\nwobbly,AI,R2", "points.csv: line 2: peak 2.6 differs"),
+    ("toml", "peak = 2.5\n\n[rates", "\n[rates", "points.csv: line 2: the file's points are at peak 2.5"),
+    ("toml", "count = 2", "count = 3", "points.csv: line 2: 5000 bytes over the sequence's 3 frames"),
+])
+def test_bad_points_files_fail_naming_file_and_line(points_experiment, capsys, target, old, new, message):
+    path = points_experiment.parent / "points.csv" if target == "csv" else points_experiment
+    assert old in path.read_text()
+    path.write_text(path.read_text().replace(old, new, 1))
+    with pytest.raises(evaluate.ConfigError) as e:
+        evaluate.load_experiment(points_experiment)
+    assert message in str(e.value) and f"{points_experiment}: variant 'tm'" in str(e.value)
+    assert eval_cli(points_experiment) == 1
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("dynmesh eval: error:") and message in err and "\n" not in err
+
+
+def test_tm14_experiment_reads_the_shared_test_model_points():
+    for name in ("basketball_player", "dancer", "mitch", "thomas"):
+        shared_sequence(name)
+    if not (SHARED_DATA.parent / "anchors" / "tm14_geometry_anchor.csv").is_file():
+        pytest.skip("shared anchors not present")
+    exp = evaluate.load_experiment(Path(__file__).resolve().parents[1] / "experiments" / "tm14_intra.toml")
+    assert exp.anchor == "tm14-ai" and [v.name for v in exp.variants] == ["tm14-ai", "dynmesh-ai", "draco"]
+    assert all(len(s.frames) == 6 for s in exp.sequences)
+    points = exp.variant("tm14-ai").points  # the file's peaks and 6-frame bytes passed the checks
+    for s in exp.sequences:
+        assert [p["rate"] for p in points if p["sequence"] == s.name] == ["r1", "r2", "r3", "r4", "r5"]
+    assert len(evaluate.plan_runs(exp)) == 4 * (6 + 5)
 
 
 # ---------------------------------------------------------------- BD-rate

@@ -35,6 +35,15 @@ The experiment file (paths are relative to the file's directory)::
     [variants.rates]                    # ... or the variant's own rate points
     R1 = { quantization_bits = 7 }
 
+    [[variants]]
+    name = "tm14-ai"
+    codec = "points"                    # points measured elsewhere, read from a file, not run
+    csv = "../anchors/tm14_geometry_anchor.csv"
+    where = { cond = "AI" }             # optional: keep the rows with this text in the column
+    columns = { sequence = "seq" }      # optional: the file's column for a field; defaults:
+    # sequence = "seq", rate = "rate", mbps = "mbps", d1 = "d1", d2 = "d2", bytes = "bytes",
+    # enc = "enc_s_per_frame", dec = "dec_s_per_frame", peak = "peak"
+
 ``title`` (top level) and ``description`` (per variant) are free text for readers and
 are otherwise ignored; any other unknown key is an error, so a typo cannot go unnoticed.
 A run's options are the codec defaults, overridden by the variant's ``options``,
@@ -44,6 +53,21 @@ with a key hashed from everything that determines its result (codec and its buil
 full options, frame files, peak, grid, fps); a later call reuses a saved run whose key
 matches, so an interrupted experiment resumes and a changed option reruns only what
 it changes. ``OUT/results.json`` and ``OUT/results.csv`` collect all runs.
+
+A ``points`` variant's CSV is read when the experiment is loaded (comma-separated, a
+header line). Every kept row whose sequence column names a sequence of the experiment
+becomes that sequence's record for the rate point its rate column names, with the
+fields of a measured run the file has: ``mbps``, ``d1_psnr``, ``d2_psnr``, and
+``bytes``, ``encode_s_per_frame``, ``decode_s_per_frame``, ``peak`` when the file has
+those columns (the sequence, rate, mbps, d1 and d2 columns it must have, and any
+column named in ``columns`` or ``where``); ``frames`` and ``fps`` are the experiment's
+and ``source`` is the CSV's path relative to the experiment file. A sequence without
+rows has no points of that variant. The points are neither run nor cached; they are
+checked instead, each failure a ConfigError naming the CSV and the line: numbers must
+parse, each sequence and rate appear once, a ``peak`` column needs the sequence to
+declare a peak within 1e-3 relative (PSNRs at different peaks do not compare), and
+``bytes`` over the sequence's frames at ``fps`` must give the file's Mbit/s within 2 %
+(else the points were measured on other frames or at another frame rate).
 """
 
 from __future__ import annotations
@@ -158,10 +182,16 @@ class RatePoint:
 
 @dataclass
 class Variant:
+    """A codec variant; a ``points`` variant has no options or rate points but its
+    records (``points``), read from ``source`` (relative to the experiment file)."""
+
     name: str
     codec: str
     options: dict
     rates: list[RatePoint]
+    source: str | None = None
+    where: dict = field(default_factory=dict)
+    points: list[dict] = field(default_factory=list)
 
 
 @dataclass
@@ -186,6 +216,14 @@ class Experiment:
 _TOP_KEYS = {"anchor", "fps", "grid_size", "sequences", "variants", "rates", "title", "description"}
 _SEQUENCE_KEYS = {"name", "path", "start", "count", "peak"}
 _VARIANT_KEYS = {"name", "codec", "options", "rates", "description"}
+_POINTS_KEYS = {"name", "codec", "csv", "where", "columns", "description"}
+#: The codec of a variant whose records are read from a CSV file instead of measured.
+POINTS = "points"
+#: Record field (as ``columns`` names it) -> default CSV column.
+_POINT_COLUMNS = {"sequence": "seq", "rate": "rate", "mbps": "mbps", "d1": "d1", "d2": "d2", "bytes": "bytes",
+                  "enc": "enc_s_per_frame", "dec": "dec_s_per_frame", "peak": "peak"}
+#: Fields a CSV may lack (unless ``columns`` names their column): the record lacks them then.
+_OPTIONAL_COLUMNS = {"bytes", "enc", "dec", "peak"}
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 
 
@@ -195,7 +233,8 @@ def load_experiment(path: str | os.PathLike) -> Experiment:
     Raises ConfigError (a ValueError) with a one-line message naming the file and the
     offending key: unreadable or invalid TOML, a missing or unknown key, a wrong type,
     an unknown codec or option, a duplicate name, an anchor that is no variant, a
-    sequence whose frames cannot be found.
+    sequence whose frames cannot be found, a points variant's CSV that cannot be read
+    or fails a check (then naming the CSV and its line too).
     """
     path = Path(path)
     try:
@@ -213,18 +252,18 @@ def load_experiment(path: str | os.PathLike) -> Experiment:
     sequences = [_sequence(s, base, f"{where}: sequences[{i}]")
                  for i, s in enumerate(_list_of_tables(doc, "sequences", where))]
     _unique([s.name for s in sequences], f"{where}: sequences")
+    fps = float(_get(doc, "fps", (int, float), where, default=30))
+    grid = _get(doc, "grid_size", int, where, default=1024)
+    if not fps > 0 or grid < 2:
+        raise ConfigError(f"{where}: fps must be positive and grid_size at least 2")
     rate_sets = _get(doc, "rates", dict, where, default={})
-    variants = [_variant(v, rate_sets, f"{where}: variants[{i}]")
+    variants = [_variant(v, rate_sets, sequences, fps, base, f"{where}: variants[{i}]")
                 for i, v in enumerate(_list_of_tables(doc, "variants", where))]
     _unique([v.name for v in variants], f"{where}: variants")
 
     anchor = _get(doc, "anchor", str, where, default=variants[0].name)
     if anchor not in {v.name for v in variants}:
         raise ConfigError(f"{where}: anchor {anchor!r} is not a variant (variants: {', '.join(v.name for v in variants)})")
-    fps = float(_get(doc, "fps", (int, float), where, default=30))
-    grid = _get(doc, "grid_size", int, where, default=1024)
-    if not fps > 0 or grid < 2:
-        raise ConfigError(f"{where}: fps must be positive and grid_size at least 2")
     return Experiment(path, anchor, fps, grid, sequences, variants)
 
 
@@ -247,13 +286,15 @@ def _sequence(t: dict, base: Path, where: str) -> Sequence:
     return Sequence(name, tuple(Path(os.path.normpath(p)) for p in frames), None if peak is None else float(peak))
 
 
-def _variant(t: dict, rate_sets: dict, where: str) -> Variant:
-    _no_unknown(t, _VARIANT_KEYS, where)
+def _variant(t: dict, rate_sets: dict, sequences: list[Sequence], fps: float, base: Path, where: str) -> Variant:
     name = _name(t, where)
     where = f"{where.rsplit(':', 1)[0]}: variant {name!r}"
     codec = _get(t, "codec", str, where)
-    if codec not in CODECS:
-        raise ConfigError(f"{where}: unknown codec {codec!r} (known: {', '.join(CODECS)})")
+    if codec not in CODECS and codec != POINTS:
+        raise ConfigError(f"{where}: unknown codec {codec!r} (known: {', '.join([*CODECS, POINTS])})")
+    _no_unknown(t, _POINTS_KEYS if codec == POINTS else _VARIANT_KEYS, where)
+    if codec == POINTS:
+        return _points_variant(t, name, sequences, fps, base, where)
     options = _get(t, "options", dict, where, default={})
     rates = _get(t, "rates", (str, dict), where)
     if isinstance(rates, str):
@@ -275,6 +316,94 @@ def _variant(t: dict, rate_sets: dict, where: str) -> Variant:
                               f"(known: {', '.join(CODECS[codec].DEFAULTS)})")
         points.append(RatePoint(rate, merged))
     return Variant(name, codec, options, points)
+
+
+def _points_variant(t: dict, name: str, sequences: list[Sequence], fps: float, base: Path, where: str) -> Variant:
+    """A points variant with the records of its CSV's kept rows (module docstring)."""
+    spec = _get(t, "csv", str, where)
+    keep = _text_table(t, "where", where)
+    named = _text_table(t, "columns", where)
+    _no_unknown(named, set(_POINT_COLUMNS), f"{where}: columns")
+    path = Path(os.path.normpath(spec if os.path.isabs(spec) else base / spec))
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as e:
+        raise ConfigError(f"{where}: csv {spec!r}: cannot read {path}: {getattr(e, 'strerror', None) or e}") from None
+    at = f"{where}: {path}"
+    reader = csv.DictReader(io.StringIO(text))
+    header = reader.fieldnames or []
+    columns = {**_POINT_COLUMNS, **named}
+    absent = [c for f, c in columns.items() if c not in header and (f not in _OPTIONAL_COLUMNS or f in named)]
+    absent += [c for c in keep if c not in header]
+    if absent:
+        raise ConfigError(f"{at}: line 1: no column(s) {', '.join(absent)} (the header has {', '.join(header)})")
+    columns = {f: c for f, c in columns.items() if c in header}
+    by_name = {s.name: s for s in sequences}
+    source = Path(os.path.relpath(path, base)).as_posix()
+    points, lines = [], {}
+    try:
+        for row in reader:
+            seq = by_name.get(row[columns["sequence"]])
+            if seq is None or any(row[c] != v for c, v in keep.items()):
+                continue
+            point = _point(row, columns, seq, name, source, fps, f"{at}: line {reader.line_num}")
+            run = (seq.name, point["rate"])
+            if run in lines:
+                raise ConfigError(f"{at}: line {reader.line_num}: sequence {seq.name!r} rate {point['rate']!r} "
+                                  f"already on line {lines[run]} (a 'where' filter keeps one condition)")
+            lines[run] = reader.line_num
+            points.append(point)
+    except csv.Error as e:
+        raise ConfigError(f"{at}: line {reader.line_num}: {e}") from None
+    return Variant(name, POINTS, {}, [], source, keep, points)
+
+
+def _point(row: dict, columns: dict, seq: Sequence, variant: str, source: str, fps: float, at: str) -> dict:
+    """The record of one CSV row (module docstring); ``at`` names the file and line."""
+    rate = row[columns["rate"]] or ""
+    if not _NAME.match(rate):
+        raise ConfigError(f"{at}: rate {rate!r} must be letters, digits, '_', '-', '.', '+'")
+    num = {f: _number(row[c], int if f == "bytes" else float, f"{at}: column {c!r}")
+           for f, c in columns.items() if f not in ("sequence", "rate")}
+    if "peak" in num:
+        _check_peak(num["peak"], seq, at)
+    frames = len(seq.frames)
+    if "bytes" in num and abs(_mbps(num["bytes"], frames, fps) - num["mbps"]) > 0.02 * num["mbps"]:
+        raise ConfigError(f"{at}: {num['bytes']} bytes over the sequence's {frames} frames at {fps:g} fps are "
+                          f"{_mbps(num['bytes'], frames, fps):.4f} Mbit/s, the file says {num['mbps']:g}: "
+                          f"were the points measured on other frames?")
+    return {
+        "schema": SCHEMA, "sequence": seq.name, "variant": variant, "codec": POINTS, "source": source, "rate": rate,
+        "frames": frames, "peak": num.get("peak", seq.peak), "fps": fps,
+        **({"bytes": num["bytes"]} if "bytes" in num else {}),
+        "bits_per_frame": num["mbps"] * 1e6 / fps, "mbps": num["mbps"], "d1_psnr": num["d1"], "d2_psnr": num["d2"],
+        **{key: num[f] for f, key in (("enc", TIMING_FIELDS[0]), ("dec", TIMING_FIELDS[1])) if f in num},
+    }
+
+
+def _number(text: str | None, kind: type, at: str) -> float | int:
+    try:
+        return kind(text)
+    except (TypeError, ValueError):
+        raise ConfigError(f"{at}: {text or ''!r} is not {'an integer' if kind is int else 'a number'}") from None
+
+
+def _check_peak(peak: float, seq: Sequence, at: str) -> None:
+    # A PSNR moves by 20 log10 of the peak ratio: points at another peak compare with nothing.
+    if seq.peak is None:
+        raise ConfigError(f"{at}: the file's points are at peak {peak}; sequence {seq.name!r} must declare "
+                          f"its peak (peak = {peak})")
+    if abs(peak - seq.peak) > 1e-3 * seq.peak:
+        raise ConfigError(f"{at}: peak {peak} differs from sequence {seq.name!r}'s peak {seq.peak} "
+                          f"(PSNRs at different peaks do not compare)")
+
+
+def _text_table(t: dict, key: str, where: str) -> dict:
+    table = _get(t, key, dict, where, default={})
+    for k, v in table.items():
+        if not isinstance(v, str):
+            raise ConfigError(f"{where}: '{key}.{k}' must be str, got {type(v).__name__} {v!r}")
+    return table
 
 
 def _list_of_tables(doc: dict, key: str, where: str) -> list[dict]:
@@ -364,7 +493,8 @@ class Run:
 
 
 def plan_runs(exp: Experiment) -> list[Run]:
-    """All runs in report order: sequence, then variant, then rate point."""
+    """All runs in report order: sequence, then variant, then rate point. A points
+    variant has none: its records come from its file (``Variant.points``)."""
     base = exp.path.resolve().parent
     return [Run(s, v.name, v.codec, r.name, r.options, exp.fps, exp.grid_size, base)
             for s in exp.sequences for v in exp.variants for r in v.rates]
@@ -394,22 +524,26 @@ def measure(run: Run) -> dict:
     except (ValueError, TypeError, OSError) as e:
         raise RunError(f"run {run.id}: {e}") from None
     n = len(refs)
-    bits_per_frame = 8 * enc.total_bytes / n
     per_frame = [{"frame": i, "file": name, "bytes": b, **{k: f[k] for k in _FRAME_FIGURES if k in f}}
                  for i, (name, b, f) in enumerate(zip(run.frame_names(), enc.frame_bytes, m["frames"]))]
     colour = {k: m[k] for k in COLOUR_FIELDS if k in m}
     if colour:
-        colour["texture_mbps"] = 8 * enc.texture_bytes / n * run.fps / 1e6
-        colour["geometry_mbps"] = 8 * (enc.total_bytes - enc.texture_bytes) / n * run.fps / 1e6
+        colour["texture_mbps"] = _mbps(enc.texture_bytes, n, run.fps)
+        colour["geometry_mbps"] = _mbps(enc.total_bytes - enc.texture_bytes, n, run.fps)
     return {
         "schema": SCHEMA, "key": run.key(), "sequence": run.sequence.name, "variant": run.variant,
         "codec": run.codec, "codec_version": codec.version(), "rate": run.rate, "options": run.full_options(),
         "frames": n, "peak": m["peak"], "grid_size": run.grid_size, "fps": run.fps,
-        "bytes": enc.total_bytes, "bits_per_frame": bits_per_frame, "mbps": bits_per_frame * run.fps / 1e6,
+        "bytes": enc.total_bytes, "bits_per_frame": 8 * enc.total_bytes / n, "mbps": _mbps(enc.total_bytes, n, run.fps),
         "d1_psnr": m["d1_psnr"], "d2_psnr": m["d2_psnr"], **colour,
         "encode_s_per_frame": (t1 - t0) / n, "decode_s_per_frame": (t2 - t1) / n,
         "per_frame": per_frame,
     }
+
+
+def _mbps(total_bytes: int, frames: int, fps: float) -> float:
+    """Mbit/s of ``total_bytes`` spread over ``frames`` frames shown at ``fps``."""
+    return 8 * total_bytes / frames * fps / 1e6
 
 
 #: Texture PSNRs a run of a textured sequence adds to its record, beside the rates of
@@ -444,14 +578,18 @@ def run_experiment(
 ) -> list[dict]:
     """Measures every run of ``exp`` not already saved in ``out`` (all of them with
     ``force``), ``jobs`` at a time in separate processes, and returns all records in
-    plan order. ``on_start(run)`` is called when a run is handed to a worker;
-    ``on_done(run, record, reused)`` when it is finished or found in the cache.
-    Each record is saved as soon as it exists, and results.json/csv are rewritten after
-    every run. Raises RunError for a failed run, after saving the others that finished.
+    report order (sequence, variant, rate point), the points of points variants among
+    them. ``on_start(run)`` is called when a run is handed to a worker;
+    ``on_done(run, record, reused)`` when it is finished or found in the cache (points
+    are no runs: neither is called for them). Each record is saved as soon as it
+    exists, and results.json/csv are rewritten after every run. Raises RunError for a
+    failed run, after saving the others that finished.
     """
     out = Path(out)
     (out / "runs").mkdir(parents=True, exist_ok=True)
     runs = plan_runs(exp)
+    # Read from their files at load time: cheap, so never cached nor handed to a worker.
+    points = [p for v in exp.variants for p in v.points]
     records: dict[str, dict] = {}
     todo = []
     for run in runs:
@@ -463,10 +601,13 @@ def run_experiment(
             if on_done:
                 on_done(run, record, True)
 
+    def so_far() -> list[dict]:
+        return _in_report_order(exp, points + [records[r.id] for r in runs if r.id in records])
+
     def finish(run: Run, record: dict) -> None:
         _save_json(out / "runs" / run.file_name, record)
         records[run.id] = record
-        write_summary(exp, [records[r.id] for r in runs if r.id in records], out)
+        write_summary(exp, so_far(), out)
         if on_done:
             on_done(run, record, False)
 
@@ -496,9 +637,17 @@ def run_experiment(
                 for fut in pending:
                     fut.cancel()
                 raise
-    ordered = [records[r.id] for r in runs]
+    ordered = so_far()
     write_summary(exp, ordered, out)
     return ordered
+
+
+def _in_report_order(exp: Experiment, records: list[dict]) -> list[dict]:
+    """``records`` by sequence, then variant, as the experiment lists them; the sort is
+    stable, so the rate points of a variant keep their order."""
+    seq = {s.name: i for i, s in enumerate(exp.sequences)}
+    var = {v.name: i for i, v in enumerate(exp.variants)}
+    return sorted(records, key=lambda r: (seq[r["sequence"]], var[r["variant"]]))
 
 
 # ---------------------------------------------------------------- results files
@@ -517,8 +666,9 @@ def results_document(exp: Experiment, records: list[dict]) -> dict:
         "grid_size": exp.grid_size,
         "sequences": [{"name": s.name, "frames": len(s.frames), "peak": s.peak,
                        "first": Path(os.path.relpath(s.frames[0], base)).as_posix()} for s in exp.sequences],
-        "variants": [{"name": v.name, "codec": v.codec, "options": v.options,
-                      "rates": {r.name: r.options for r in v.rates}} for v in exp.variants],
+        "variants": [{"name": v.name, "codec": v.codec, "source": v.source, "where": v.where} if v.codec == POINTS
+                     else {"name": v.name, "codec": v.codec, "options": v.options,
+                           "rates": {r.name: r.options for r in v.rates}} for v in exp.variants],
         "runs": records,
     }
 
@@ -527,12 +677,14 @@ def write_summary(exp: Experiment, records: list[dict], out: Path) -> None:
     """Writes out/results.json and out/results.csv (each to a temporary name, then renamed)."""
     _save_json(out / "results.json", results_document(exp, records))
     buf = io.StringIO()
-    extra = [k for k in COLOUR_FIELDS + ("geometry_mbps", "texture_mbps") if any(k in r for r in records)]
+    extra = [k for k in COLOUR_FIELDS + ("geometry_mbps", "texture_mbps", "source") if any(k in r for r in records)]
     fields = CSV_FIELDS[:-4] + extra + CSV_FIELDS[-4:]
     w = csv.DictWriter(buf, fields, lineterminator="\n")
     w.writeheader()
     for r in records:
-        w.writerow({k: json.dumps(r[k], sort_keys=True) if k == "options" else _csv_value(r.get(k, "")) for k in fields})
+        # Points from a file have no options (nor key, bytes or times when the file lacks them).
+        w.writerow({k: json.dumps(r[k], sort_keys=True) if k == "options" and k in r else _csv_value(r.get(k, ""))
+                    for k in fields})
     api.write_bytes_atomic(out / "results.csv", buf.getvalue().encode())
 
 

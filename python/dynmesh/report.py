@@ -13,6 +13,10 @@ mean of the per-sequence BD-rates, as in the CTC spreadsheets.
 Time ratios: test time / anchor time per frame, each side the geometric mean over its
 rate points; the average row is the geometric mean over sequences (CTC spreadsheets
 use geometric means for times as well).
+
+Points taken from a file (records with a ``source``, of a ``points`` variant) take part
+like measured runs, as anchor or as test; figures the file lacks show as n/a, and a
+sequence the file has no points for is noted.
 """
 
 from __future__ import annotations
@@ -109,7 +113,8 @@ def bd_rows(results: dict) -> list[dict]:
     """One row per sequence and non-anchor variant, then one "Average" row per variant.
 
     Row: sequence, variant, d1_bd, d2_bd (percent or None), d1_note, d2_note,
-    enc_ratio, dec_ratio (test time / anchor time, or None).
+    enc_ratio, dec_ratio (test time / anchor time, or None: also when a side has no
+    times). A side without points for the sequence gets the note "no points of NAME".
     """
     anchor = results["anchor"]
     tests = [v["name"] for v in results["variants"] if v["name"] != anchor]
@@ -119,11 +124,14 @@ def bd_rows(results: dict) -> list[dict]:
         for var in tests:
             pts = rd_points(results, seq, var)
             row = {"sequence": seq, "variant": var}
+            # A file of points may skip a sequence: say so, not "fewer than 2 points".
+            absent = " and ".join(v for v, p in ((anchor, ref), (var, pts)) if not p)
             for key, label in metrics_of(results):
                 bd = bd_rate([(r["mbps"], r[key]) for r in ref], [(r["mbps"], r[key]) for r in pts])
-                row[f"{label.lower()}_bd"], row[f"{label.lower()}_note"] = bd["bd_rate"], bd["note"]
+                row[f"{label.lower()}_bd"] = bd["bd_rate"]
+                row[f"{label.lower()}_note"] = f"no points of {absent}" if absent else bd["note"]
             for key, short in (("encode_s_per_frame", "enc"), ("decode_s_per_frame", "dec")):
-                num, den = _geomean(r[key] for r in pts), _geomean(r[key] for r in ref)
+                num, den = _geomean(r.get(key) for r in pts), _geomean(r.get(key) for r in ref)
                 row[f"{short}_ratio"] = num / den if num and den else None
             rows.append(row)
     for var in tests:
@@ -186,6 +194,11 @@ def _ratio(v: float | None) -> str:
     if v is None:
         return "n/a"
     return f"{100 * v:.0f} %" if v >= 0.1 else f"{100 * v:.1f} %"
+
+
+def _figure(r: dict, key: str, fmt: str, scale: float = 1.0) -> str:
+    """``scale`` times a record's figure, formatted, or "n/a" when a file of points lacked it."""
+    return "n/a" if r.get(key) is None else format(scale * r[key], fmt)
 
 
 def _md_table(head: list[str], rows: list[list[str]], align: str | None = None) -> str:
@@ -254,34 +267,43 @@ def swapped_markdown(results: dict, rows: list[dict]) -> str:
 
 
 def rd_markdown(results: dict, sequence: str) -> str:
-    """The measured points of one sequence: every variant and rate point (with texture
-    PSNRs and the geometry and texture rates apart when the runs measured texture)."""
+    """The points of one sequence: every variant and rate point (with texture PSNRs and
+    the geometry and texture rates apart when the runs measured texture), then the
+    variants that have none."""
     colour = [("geometry_mbps", "geometry Mbit/s", ".3f"), ("texture_mbps", "texture Mbit/s", ".3f"),
               ("y_psnr", "Y PSNR (dB)", ".2f"), ("cb_psnr", "Cb PSNR (dB)", ".2f"),
               ("cr_psnr", "Cr PSNR (dB)", ".2f")] if _textured(results) else []
     rows = []
     for v in results["variants"]:
         for r in rd_points(results, sequence, v["name"]):
-            rows.append([v["name"], r["rate"], f"{r['bytes'] / r['frames']:.0f}", f"{r['mbps']:.3f}",
+            rows.append([v["name"], r["rate"], _figure(r, "bytes", ".0f", 1 / r["frames"]), f"{r['mbps']:.3f}",
                          f"{r['d1_psnr']:.2f}", f"{r['d2_psnr']:.2f}"]
                         + [format(r[k], f) for k, _, f in colour]
-                        + [f"{1000 * r['encode_s_per_frame']:.1f}", f"{1000 * r['decode_s_per_frame']:.1f}"])
+                        + [_figure(r, k, ".1f", 1000) for k in ("encode_s_per_frame", "decode_s_per_frame")])
     head = (["variant", "rate", "bytes/frame", "Mbit/s", "D1 PSNR (dB)", "D2 PSNR (dB)"] + [h for _, h, _ in colour]
             + ["enc ms/frame", "dec ms/frame"])
-    return _md_table(head, rows, "ll" + "r" * (len(head) - 2))
+    table = _md_table(head, rows, "ll" + "r" * (len(head) - 2))
+    absent = [v["name"] for v in results["variants"] if not rd_points(results, sequence, v["name"])]
+    return table + (f"\n\nNo points for this sequence: {', '.join(absent)}." if absent else "")
 
 
 def conditions_markdown(results: dict) -> str:
-    """Sequences (frames, peak) and variants (codec, rate point options)."""
+    """Sequences (frames, peak) and variants (codec, rate point options; for points, the
+    rows kept and the file)."""
     seq = _md_table(["sequence", "frames", "first frame (relative to the experiment file)", "PSNR peak"],
                     [[s["name"], str(s["frames"]), f"`{s['first']}`",
                       "box side" if s["peak"] is None else f"{s['peak']:g}"] for s in results["sequences"]], "lrll")
     var_rows = []
     for v in results["variants"]:
+        name = v["name"] + (" (anchor)" if v["name"] == results["anchor"] else "")
+        if "source" in v:
+            kept = ", ".join(f"{k}={x}" for k, x in v["where"].items())
+            var_rows.append([name, v["codec"], f"rows with {kept}" if kept else "all rows",
+                             f"read from `{v['source']}`"])
+            continue
         common = ", ".join(f"{k}={_opt(x)}" for k, x in v["options"].items()) or "-"
         rates = "; ".join(f"{n}: " + ", ".join(f"{k}={_opt(x)}" for k, x in o.items() if v["options"].get(k) != x)
                           for n, o in v["rates"].items())
-        name = v["name"] + (" (anchor)" if v["name"] == results["anchor"] else "")
         var_rows.append([name, v["codec"], common, rates])
     var = _md_table(["variant", "codec", "options", "rate points"], var_rows, "llll")
     return seq + "\n\n" + var
@@ -295,7 +317,8 @@ def _opt(x) -> str:
 
 def markdown(results: dict, images: dict[tuple[str, str], str], command: str | None = None) -> str:
     """The whole page; ``images`` maps (sequence, metric) to a path relative to the page."""
-    runs = results["runs"]
+    runs = [r for r in results["runs"] if "source" not in r]  # measured here, not taken from a file
+    taken = len(results["runs"]) - len(runs)
     frames = sum(r["frames"] for r in runs)
     enc_s = sum(r["encode_s_per_frame"] * r["frames"] for r in runs)
     dec_s = sum(r["decode_s_per_frame"] * r["frames"] for r in runs)
@@ -305,8 +328,9 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
         "",
         "Every figure on this page was measured by `dynmesh eval` "
         + (f"(`{command}`) " if command else "")
-        + "and is recomputed from the saved results when the page is rebuilt. "
-        f"{len(runs)} runs, {frames} coded frames; total codec time {enc_s:.1f} s encoding, {dec_s:.1f} s decoding.",
+        + "and is recomputed from the saved results when the page is rebuilt"
+        + (f", except {taken} points taken from files (codec `points`, see *Conditions*). " if taken else ". ")
+        + f"{len(runs)} runs, {frames} coded frames; total codec time {enc_s:.1f} s encoding, {dec_s:.1f} s decoding.",
         "",
         f"Date: {datetime.date.today().isoformat()}  ",
         f"Machine: {_machine()}  ",
@@ -345,6 +369,13 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
         "was running; dynmesh uses several threads, Draco one. They are indicative and not part of any "
         "determinism check. Time ratios: geometric mean over rate points per sequence, geometric mean over "
         "sequences in the average row. BD-rate average: arithmetic mean over sequences.",
+    ]
+    if taken:
+        parts.append("- **Points from files** (codec `points`, *Conditions* names the file): rate, D1/D2 and times "
+                     "as the file gives them, not measured here; the harness checks only the file's peak and bytes, "
+                     "where it has them, against the sequence's peak and frames. Their times were taken wherever the "
+                     "points were measured, so time ratios against them are indicative only.")
+    parts += [
         "",
         "## Conditions",
         "",
