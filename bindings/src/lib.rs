@@ -136,6 +136,7 @@ fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
                 })?
             }
             "rd_slope" => c.rd_slope_db = value.extract()?,
+            "refit" => c.refit = value.extract()?,
             "aq" => aq_on = value.extract()?,
             "aq_alpha" => aq.alpha = value.extract()?,
             "aq_delta" => aq.delta = value.extract()?,
@@ -291,6 +292,7 @@ fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("intra_period", c.intra_period)?;
     d.set_item("inter", c.inter.name())?;
     d.set_item("rd_slope", c.rd_slope_db)?;
+    d.set_item("refit", c.refit)?;
     let aq = c.aq.unwrap_or_default();
     d.set_item("aq", c.aq.is_some())?;
     d.set_item("aq_alpha", aq.alpha)?;

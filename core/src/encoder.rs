@@ -19,6 +19,7 @@ use crate::grid::{Grid, BITS_RANGE};
 use crate::mesh::{cross, norm, sub, Mesh};
 use crate::motion;
 use crate::quantize::{self, AqParams};
+use crate::refit::refit_base;
 use crate::subdivide::{SchemeChoice, Subdivision};
 use crate::tracking::{self, Bindings};
 use crate::transform;
@@ -86,6 +87,8 @@ pub struct EncoderConfig {
     /// rate (the local slope of the codec's RD curve): a frame is predicted when the PSNR it
     /// loses against intra is at most `rd_slope_db * log2(intra bytes / predicted bytes)`.
     pub rd_slope_db: f64,
+    /// Refit the base mesh so that its subdivision fits the input, before it is quantized.
+    pub refit: bool,
 }
 
 impl Default for EncoderConfig {
@@ -102,6 +105,7 @@ impl Default for EncoderConfig {
             inter: InterMode::NnsMeQem,
             aq: Some(AqParams::default()),
             rd_slope_db: 4.0,
+            refit: true,
         }
     }
 }
@@ -295,7 +299,7 @@ impl SequenceEncoder {
 
     fn intra(&self, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
         let h = &self.header;
-        let base_bytes = base_mesh_bytes(h, &self.config, &input.positions, &input.faces);
+        let base_bytes = base_mesh_bytes(h, &self.config, &input.positions, &input.faces, target);
         let (base, faces) = basecoder::decode_base(&base_bytes, h.base_bits)
             .map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
         let mut w = Writer::default();
@@ -433,12 +437,14 @@ fn area_weighted_squared_distance(positions: &[[f64; 3]], faces: &[[u32; 3]], su
     if area > 0.0 { weighted / area } else { 0.0 }
 }
 
-/// Decimates the input (grid units) and codes the quantized base mesh.
-fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<u8> {
+/// Decimates the input (grid units), refits the base mesh so that its subdivision fits the
+/// input `surface` (with `cfg.refit`) and codes the quantized base mesh.
+fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], faces: &[[u32; 3]], surface: &Bvh) -> Vec<u8> {
     let target = ((faces.len() as f64 * cfg.base_ratio).ceil() as usize).max(1);
     let base = decimate(input, faces, target);
+    let refitted = if cfg.refit { refit_base(&base, &h.schemes, surface) } else { base.positions };
     let base_grid = h.grid.coarser(h.base_bits);
-    let positions: Vec<[u32; 3]> = base.positions.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect();
+    let positions: Vec<[u32; 3]> = refitted.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect();
     basecoder::encode_base(&positions, &base.faces, h.base_bits)
 }
 

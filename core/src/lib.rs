@@ -20,6 +20,7 @@ pub mod anchor;
 pub mod motion;
 pub mod tracking;
 pub mod subdivide;
+pub mod refit;
 pub mod bvh;
 pub mod displace;
 pub mod transform;

@@ -90,6 +90,10 @@ pub struct Subdivision {
     pub parents: Vec<[u32; 2]>,
     /// Start of each level of detail, then the vertex count: `[0, base, level1, ..., total]`.
     pub lod_offsets: Vec<usize>,
+    /// Iteration `i`'s positions are `stencils[i]` applied to iteration `i - 1`'s (the base
+    /// mesh's for `i = 0`): the subdivision is linear in the base positions, which is what
+    /// lets the encoder fit the base mesh so that its subdivision fits the input.
+    pub stencils: Vec<Stencils>,
 }
 
 impl Subdivision {
@@ -102,6 +106,72 @@ impl Subdivision {
     pub fn parent(&self, v: usize) -> [u32; 2] {
         self.parents[v - self.lod_offsets[1]]
     }
+
+    /// The subdivided positions of other base positions `base` (one per base vertex), on
+    /// this subdivision's connectivity.
+    pub fn apply(&self, base: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        self.stencils.iter().fold(base.to_vec(), |p, s| s.apply(&p))
+    }
+
+    /// The transpose of [`Subdivision::apply`]: `y` (one vector per subdivided vertex)
+    /// gathered back onto the base vertices.
+    pub fn apply_transposed(&self, y: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        self.stencils.iter().enumerate().rev().fold(y.to_vec(), |g, (i, s)| s.apply_transposed(&g, self.lod_offsets[i + 1]))
+    }
+}
+
+/// One iteration's position rule: each vertex of the new level as a weighted sum of the
+/// vertices of the level before.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Stencils {
+    /// Row `v` is `entries[starts[v]..starts[v + 1]]`.
+    starts: Vec<u32>,
+    entries: Vec<(u32, f64)>,
+}
+
+impl Stencils {
+    fn push(&mut self, row: &[(u32, f64)]) {
+        if self.starts.is_empty() {
+            self.starts.push(0);
+        }
+        self.entries.extend_from_slice(row);
+        self.starts.push(self.entries.len() as u32);
+    }
+
+    fn row(&self, v: usize) -> &[(u32, f64)] {
+        &self.entries[self.starts[v] as usize..self.starts[v + 1] as usize]
+    }
+
+    fn rows(&self) -> usize {
+        self.starts.len().saturating_sub(1)
+    }
+
+    /// The new level's positions from the previous level's `p`: each row's weighted
+    /// positions summed in row order, starting from zero.
+    pub fn apply(&self, p: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        (0..self.rows())
+            .map(|v| {
+                self.row(v).iter().fold([0.0; 3], |acc, &(u, w)| {
+                    let q = p[u as usize];
+                    [acc[0] + w * q[0], acc[1] + w * q[1], acc[2] + w * q[2]]
+                })
+            })
+            .collect()
+    }
+
+    /// The transpose of [`Stencils::apply`] onto `n` vertices of the previous level.
+    pub fn apply_transposed(&self, y: &[[f64; 3]], n: usize) -> Vec<[f64; 3]> {
+        let mut g = vec![[0.0; 3]; n];
+        for (v, yv) in y.iter().enumerate() {
+            for &(u, w) in self.row(v) {
+                let t = &mut g[u as usize];
+                for k in 0..3 {
+                    t[k] += w * yv[k];
+                }
+            }
+        }
+        g
+    }
 }
 
 /// Subdivides `(positions, faces)` once per entry of `schemes`, with that scheme.
@@ -111,6 +181,7 @@ pub fn subdivide(positions: &[[f64; 3]], faces: &[[u32; 3]], schemes: &[Scheme])
         faces: faces.to_vec(),
         parents: Vec::new(),
         lod_offsets: vec![0, positions.len()],
+        stencils: Vec::with_capacity(schemes.len()),
     };
     for &scheme in schemes {
         split_once(&mut s, scheme);
@@ -143,14 +214,18 @@ fn split_once(s: &mut Subdivision, scheme: Scheme) {
         });
         new_faces.extend(split_face(f, mids));
     }
-    let first_parent = s.parents.len() - opposite.len();
-    let odd: Vec<[f64; 3]> = (0..opposite.len())
-        .map(|i| odd_position(&s.positions, s.parents[first_parent + i], opposite[i], scheme))
-        .collect();
+    let mut stencils = Stencils::default();
     if scheme == Scheme::Loop {
-        smooth_even(&mut s.positions, &s.faces);
+        even_loop_stencils(n0, &s.faces, &mut stencils);
+    } else {
+        (0..n0 as u32).for_each(|v| stencils.push(&[(v, 1.0)]));
     }
-    s.positions.extend(odd);
+    let first_parent = s.parents.len() - opposite.len();
+    for (i, opp) in opposite.iter().enumerate() {
+        stencils.push(&odd_stencil(s.parents[first_parent + i], *opp, scheme));
+    }
+    s.positions = stencils.apply(&s.positions);
+    s.stencils.push(stencils);
     s.faces = new_faces;
     s.lod_offsets.push(s.positions.len());
 }
@@ -191,27 +266,25 @@ pub fn subdivide_uv(uv: &[[f64; 2]], uv_faces: &[[u32; 3]], iterations: u32) -> 
     (uv, faces)
 }
 
-/// Position of the vertex that splits `edge`; `opp = [c, d, face count]`.
-fn odd_position(p: &[[f64; 3]], edge: [u32; 2], opp: [u32; 3], scheme: Scheme) -> [f64; 3] {
-    let (a, b) = (p[edge[0] as usize], p[edge[1] as usize]);
+/// The weights of the vertex that splits `edge`; `opp = [c, d, face count]`: the midpoint,
+/// or with Loop on an edge of exactly two faces `3/8 (a + b) + 1/8 (c + d)`.
+fn odd_stencil(edge: [u32; 2], opp: [u32; 3], scheme: Scheme) -> Vec<(u32, f64)> {
     if scheme == Scheme::Midpoint || opp[2] != 2 {
-        return std::array::from_fn(|k| 0.5 * (a[k] + b[k]));
+        return vec![(edge[0], 0.5), (edge[1], 0.5)];
     }
-    let (c, d) = (p[opp[0] as usize], p[opp[1] as usize]);
-    std::array::from_fn(|k| 0.375 * (a[k] + b[k]) + 0.125 * (c[k] + d[k]))
+    vec![(edge[0], 0.375), (edge[1], 0.375), (opp[0], 0.125), (opp[1], 0.125)]
 }
 
-/// Loop's rule for the old vertices: interior vertices move toward the mean of their
-/// neighbours; boundary vertices use their two boundary neighbours only; vertices on
-/// non-manifold edges stay put so that no ambiguous rule is applied.
-fn smooth_even(positions: &mut [[f64; 3]], faces: &[[u32; 3]]) {
+/// Loop's rule for the old vertices, one row each: interior vertices move toward the mean
+/// of their neighbours; boundary vertices use their two boundary neighbours only; vertices
+/// on non-manifold edges stay put so that no ambiguous rule is applied.
+fn even_loop_stencils(n: usize, faces: &[[u32; 3]], stencils: &mut Stencils) {
     let mut edge_faces: EdgeMap<u32> = EdgeMap::with_capacity_and_hasher(faces.len() * 3 / 2, Default::default());
     for f in faces {
         for k in 0..3 {
             *edge_faces.entry(edge_key(f[k], f[(k + 1) % 3])).or_insert(0) += 1;
         }
     }
-    let n = positions.len();
     let mut ring: Vec<Vec<u32>> = vec![Vec::new(); n];
     let mut boundary: Vec<Vec<u32>> = vec![Vec::new(); n];
     let mut pinned = vec![false; n];
@@ -233,32 +306,22 @@ fn smooth_even(positions: &mut [[f64; 3]], faces: &[[u32; 3]]) {
             }
         }
     }
-    let old = positions.to_vec();
+    let mut row = Vec::new();
     for v in 0..n {
-        if pinned[v] || ring[v].is_empty() {
-            continue;
-        }
-        positions[v] = match boundary[v].len() {
-            0 => interior_even(&old, v, &ring[v]),
-            2 => {
-                let (a, b) = (old[boundary[v][0] as usize], old[boundary[v][1] as usize]);
-                std::array::from_fn(|k| 0.75 * old[v][k] + 0.125 * (a[k] + b[k]))
+        row.clear();
+        let me = v as u32;
+        match (pinned[v] || ring[v].is_empty(), boundary[v].len()) {
+            (false, 0) => {
+                let k = ring[v].len() as f64;
+                let beta = if ring[v].len() == 3 { 3.0 / 16.0 } else { 3.0 / (8.0 * k) };
+                row.push((me, 1.0 - k * beta));
+                row.extend(ring[v].iter().map(|&u| (u, beta)));
             }
-            _ => old[v],
-        };
-    }
-}
-
-fn interior_even(old: &[[f64; 3]], v: usize, ring: &[u32]) -> [f64; 3] {
-    let n = ring.len() as f64;
-    let beta = if ring.len() == 3 { 3.0 / 16.0 } else { 3.0 / (8.0 * n) };
-    let mut sum = [0.0; 3];
-    for &u in ring {
-        for k in 0..3 {
-            sum[k] += old[u as usize][k];
+            (false, 2) => row.extend([(me, 0.75), (boundary[v][0], 0.125), (boundary[v][1], 0.125)]),
+            _ => row.push((me, 1.0)),
         }
+        stencils.push(&row);
     }
-    std::array::from_fn(|k| (1.0 - n * beta) * old[v][k] + beta * sum[k])
 }
 
 #[cfg(test)]
@@ -394,6 +457,20 @@ mod tests {
         let looped = subdivide(&midpoint.positions, &midpoint.faces, &[Scheme::Loop]);
         assert_eq!(mixed.positions, looped.positions);
         assert_eq!(mixed.lod_offsets, vec![0, 4, 9, 25]);
+    }
+
+    #[test]
+    fn the_transposed_subdivision_is_the_adjoint_of_the_subdivision() {
+        let closed = [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [-1.0, -1.0, 0.0]];
+        let tet = vec![[0, 1, 2], [0, 2, 3], [0, 3, 1], [1, 3, 2]];
+        let s = subdivide(&closed, &tet, &[Scheme::Midpoint, Scheme::Loop]);
+        assert_eq!(s.apply(&closed), s.positions);
+        // <S x, y> = <x, S^T y> for arbitrary x and y.
+        let x: Vec<[f64; 3]> = (0..4).map(|i| [i as f64, 1.0 - i as f64, 0.5 * i as f64]).collect();
+        let y: Vec<[f64; 3]> = (0..s.positions.len()).map(|i| [(i % 5) as f64, (i % 3) as f64 - 1.0, 0.25]).collect();
+        let dot = |a: &[[f64; 3]], b: &[[f64; 3]]| a.iter().zip(b).map(|(p, q)| p[0] * q[0] + p[1] * q[1] + p[2] * q[2]).sum::<f64>();
+        let (lhs, rhs) = (dot(&s.apply(&x), &y), dot(&x, &s.apply_transposed(&y)));
+        assert!((lhs - rhs).abs() < 1e-9 * lhs.abs().max(1.0), "{lhs} vs {rhs}");
     }
 
     #[test]

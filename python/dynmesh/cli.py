@@ -45,7 +45,7 @@ def _table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
 def _encoder_options(a) -> dict:
     return dict(qp=a.qp, base_ratio=a.base_ratio, subdiv=a.subdiv, scheme=a.scheme, bits=a.bits,
                 base_bits=a.base_bits, normal_only=not a.all_components, intra_period=a.intra_period,
-                inter=a.inter, rd_slope=a.rd_slope, aq=a.aq, aq_alpha=a.aq_alpha,
+                inter=a.inter, rd_slope=a.rd_slope, refit=a.refit, aq=a.aq, aq_alpha=a.aq_alpha,
                 aq_delta=a.aq_delta, aq_h=a.aq_h, texture="auto" if a.texture is None else a.texture,
                 texture_size=a.texture_size, texture_qp=a.texture_qp, texture_codec=a.texture_codec)
 
@@ -257,6 +257,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--rd-slope", type=float, default=d["rd_slope"],
                    help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
                         f"intra (default {d['rd_slope']:g})")
+    p.add_argument("--refit", action=argparse.BooleanOptionalAction, default=d["refit"],
+                   help="least-squares refit of each intra base mesh so that its subdivision fits the input, "
+                        "before quantization (default: %(default)s)")
     p.add_argument("--aq", action=argparse.BooleanOptionalAction, default=d["aq"],
                    help="adaptive displacement quantization by vertex valence (default: %(default)s)")
     p.add_argument("--aq-alpha", type=float, default=d["aq_alpha"], help=f"AQ step factor alpha (default {d['aq_alpha']:g})")
