@@ -66,16 +66,18 @@ impl InterMode {
 pub struct EncoderConfig {
     /// Quantization parameter of the displacements: +6 doubles the step.
     pub qp: i32,
-    /// Base mesh faces as a fraction of the input's.
-    pub base_ratio: f64,
+    /// Base mesh faces as a fraction of the input's; `None` follows the QP
+    /// ([`base_ratio_for_qp`]).
+    pub base_ratio: Option<f64>,
     pub subdiv_iterations: u32,
     /// The subdivision scheme of each iteration.
     pub scheme: SchemeChoice,
     /// Position bit depth of the grid over the sequence box.
     pub bits: u32,
     /// Position bit depth of the base mesh (at most `bits`): coarser base positions cost
-    /// fewer bits and the displacements correct them.
-    pub base_bits: u32,
+    /// fewer bits and the displacements correct them. `None` follows the QP
+    /// ([`base_bits_for_qp`]).
+    pub base_bits: Option<u32>,
     /// Code only the normal component of each displacement.
     pub normal_only: bool,
     /// Frames per group: every `intra_period`-th frame is intra; 1 makes every frame intra.
@@ -95,11 +97,11 @@ impl Default for EncoderConfig {
     fn default() -> Self {
         Self {
             qp: 28,
-            base_ratio: 1.0 / 6.0,
+            base_ratio: None,
             subdiv_iterations: 3,
             scheme: SchemeChoice::Mixed,
             bits: 12,
-            base_bits: 9,
+            base_bits: None,
             normal_only: true,
             intra_period: 32,
             inter: InterMode::NnsMeQem,
@@ -117,8 +119,8 @@ impl EncoderConfig {
         if !quantize::QP_RANGE.contains(&self.qp) {
             return err(format!("qp {} out of range {:?}", self.qp, quantize::QP_RANGE));
         }
-        if !(self.base_ratio > 0.0 && self.base_ratio <= 1.0) {
-            return err(format!("base ratio {} must be in (0, 1]", self.base_ratio));
+        if !(self.base_ratio() > 0.0 && self.base_ratio() <= 1.0) {
+            return err(format!("base ratio {} must be in (0, 1]", self.base_ratio()));
         }
         if self.subdiv_iterations > bitstream::MAX_SUBDIV {
             return err(format!("subdivision iterations {} (at most {})", self.subdiv_iterations, bitstream::MAX_SUBDIV));
@@ -127,8 +129,8 @@ impl EncoderConfig {
         if !BITS_RANGE.contains(&self.bits) {
             return err(format!("position bits {} out of range {:?}", self.bits, BITS_RANGE));
         }
-        if !BITS_RANGE.contains(&self.base_bits) || self.base_bits > self.bits {
-            return err(format!("base mesh position bits {} must be in {}..={}", self.base_bits, BITS_RANGE.start(), self.bits));
+        if !BITS_RANGE.contains(&self.base_bits()) || self.base_bits() > self.bits {
+            return err(format!("base mesh position bits {} must be in {}..={}", self.base_bits(), BITS_RANGE.start(), self.bits));
         }
         if self.intra_period == 0 {
             return err("intra period must be at least 1".into());
@@ -144,16 +146,47 @@ impl EncoderConfig {
         Ok(())
     }
 
+    /// Base mesh faces per input face: as given, else as the QP asks.
+    pub fn base_ratio(&self) -> f64 {
+        self.base_ratio.unwrap_or_else(|| base_ratio_for_qp(self.qp))
+    }
+
+    /// Base mesh position bits: as given, else as the QP asks (never above `bits`).
+    pub fn base_bits(&self) -> u32 {
+        self.base_bits.unwrap_or_else(|| base_bits_for_qp(self.qp).min(self.bits))
+    }
+
     /// The sequence header for `frame_count` frames inside the box `[min, max]`.
     pub fn header(&self, frame_count: u32, min: [f64; 3], max: [f64; 3]) -> SequenceHeader {
         SequenceHeader {
             frame_count,
             grid: Grid::over_box(min, max, self.bits),
-            base_bits: self.base_bits,
+            base_bits: self.base_bits(),
             schemes: self.scheme.schemes(self.subdiv_iterations).expect("validated configuration"),
             components: if self.normal_only { 1 } else { 3 },
             aq: self.aq,
         }
+    }
+}
+
+/// The base mesh size that suits displacements quantized with `qp`: coarse displacements
+/// (high QP) leave detail to the base mesh, so a small one, and fine displacements pay for
+/// a larger base mesh. Chosen by a sweep over base ratio, base bits and QP on the first 6
+/// frames of four capture sequences, keeping the points on the rate-distortion front
+/// (docs/results.md).
+pub fn base_ratio_for_qp(qp: i32) -> f64 {
+    match qp {
+        ..=22 => 0.12,
+        23..=27 => 0.06,
+        _ => 0.03,
+    }
+}
+
+/// The base mesh position bits that suit `qp` (see [`base_ratio_for_qp`]).
+pub fn base_bits_for_qp(qp: i32) -> u32 {
+    match qp {
+        ..=27 => 11,
+        _ => 10,
     }
 }
 
@@ -440,7 +473,7 @@ fn area_weighted_squared_distance(positions: &[[f64; 3]], faces: &[[u32; 3]], su
 /// Decimates the input (grid units), refits the base mesh so that its subdivision fits the
 /// input `surface` (with `cfg.refit`) and codes the quantized base mesh.
 fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], faces: &[[u32; 3]], surface: &Bvh) -> Vec<u8> {
-    let target = ((faces.len() as f64 * cfg.base_ratio).ceil() as usize).max(1);
+    let target = ((faces.len() as f64 * cfg.base_ratio()).ceil() as usize).max(1);
     let base = decimate(input, faces, target);
     let refitted = if cfg.refit { refit_base(&base, &h.schemes, surface) } else { base.positions };
     let base_grid = h.grid.coarser(h.base_bits);

@@ -119,7 +119,7 @@ fn unknown_frame_types_are_rejected() {
 #[test]
 fn a_header_asking_for_more_subdivision_than_the_frame_justifies_is_refused() {
     // 2048 base faces subdivided 6 times would be 8M faces from a frame of a few KB.
-    let cfg = EncoderConfig { subdiv_iterations: 0, base_ratio: 1.0, ..EncoderConfig::default() };
+    let cfg = EncoderConfig { subdiv_iterations: 0, base_ratio: Some(1.0), ..EncoderConfig::default() };
     let mut s = stream_of(&cfg, &[ball_of(4)]);
     let (h, start) = bitstream::read_header(&s).unwrap();
     let schemes = vec![dynmesh::subdivide::Scheme::Midpoint; bitstream::MAX_SUBDIV as usize];
