@@ -10,7 +10,6 @@ UV (the subdivided mesh's, through ``_core.subdivide_uv``) from them.
 from __future__ import annotations
 
 import numpy as np
-import xatlas
 
 from . import _core
 
@@ -18,11 +17,13 @@ from . import _core
 UV_BITS = 12
 
 
-def _packing(size: int) -> xatlas.PackOptions:
+def _packing(size: int):
     """Packing on a grid of half the atlas side: charts land on even texels and the gutter is
     the same number of texels, in about half the packing time. (On basketball_textured it
     changed texture bytes by -1 % and luma PSNR by -0.02 dB; one charting iteration fewer,
     the other speed knob, cost 6-8 % texture bytes and was left alone.)"""
+    import xatlas  # only textured streams need it; importing it costs every command time
+
     pack = xatlas.PackOptions()
     pack.resolution = max(1, int(size) // 2)
     pack.padding = max(1, size // 1024)
@@ -37,6 +38,8 @@ def make_atlas(positions: np.ndarray, faces: np.ndarray, size: int) -> tuple[np.
     face in face order. Charts are packed with a gutter of a few texels, so that bilinear
     lookups and the chroma subsampling of the video do not mix neighbouring charts.
     """
+    import xatlas
+
     atlas = xatlas.Atlas()
     atlas.add_mesh(np.ascontiguousarray(positions, np.float32), np.ascontiguousarray(faces, np.uint32))
     atlas.generate(pack_options=_packing(size))

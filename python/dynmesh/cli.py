@@ -9,8 +9,6 @@ import tempfile
 import time
 from pathlib import Path
 
-from tqdm import tqdm
-
 from . import api, texture, video
 from .io import MeshError, read_mesh, write_mesh
 from .sequence import SequenceError, resolve_sequence
@@ -21,6 +19,8 @@ class CliError(Exception):
 
 
 def _progress(total: int, desc: str, quiet: bool):
+    from tqdm import tqdm  # a fifth of a second to import: only commands that show progress pay it
+
     return tqdm(total=total, desc=desc, unit="frame", disable=quiet or None, file=sys.stderr, leave=False)
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 import io
 import os
 
-import av
 import numpy as np
 
 from . import _core
@@ -33,6 +32,8 @@ def encode_video(images: list[np.ndarray], codec: str = "hevc", qp: int = 32) ->
     (an HEVC Annex B elementary stream, or AV1 in IVF)."""
     if codec not in CODECS:
         raise ValueError(f"unknown texture codec {codec!r} (expected {' or '.join(CODECS)})")
+    import av  # here, not at module level: PyAV takes a third of a second to import
+
     h, w = images[0].shape[:2]
     buf = io.BytesIO()
     with av.open(buf, "w", format=_container(codec)) as out:
@@ -57,6 +58,8 @@ def decode_video(data: bytes, codec: str = "hevc"):
     """Yields the decoded images of a video from ``encode_video``, in order.
 
     Raises ValueError when FFmpeg cannot decode the data."""
+    import av
+
     try:
         with av.open(io.BytesIO(data), "r", format=_container(codec)) as inp:
             for frame in inp.decode(video=0):
