@@ -372,7 +372,11 @@ impl SequenceEncoder {
         let (h, qp) = (&self.header, self.config.qp);
         let sub = decoder::subdivided_base(h, &base, &faces);
         let frames = displace::local_frames(&sub.positions, &sub.faces);
-        let world = displace::fit_displacements(&sub.positions, &sub.faces, &frames, target, h.components == 1);
+        let world = if h.components == 1 {
+            displace::fit_normal_displacements(&sub.positions, &sub.faces, &frames, target, &displace::RefineParams::default())
+        } else {
+            displace::fit_displacements(&sub.positions, &sub.faces, &frames, target, false)
+        };
         let steps = coefficient_steps(h, qp, &sub, &displace::to_local(&world, &frames));
         let mut q: Vec<i32> = steps.iter().map(|&x| quantize::round_dead_zone(x, quantize::ROUNDING_BIAS)).collect();
         let coded = |values: &[i32]| {
