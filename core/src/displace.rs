@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use crate::bvh::{Bvh, SurfacePoint};
+use crate::bvh::{closest_on_triangle, Bvh, SurfacePoint};
 use crate::mesh::{add, cross, dot, normalize, scale, sub, vertex_normals};
 
 /// A vertex's local frame, rows `[n, t, b]`: unit normal, tangent, bitangent.
@@ -394,7 +394,7 @@ fn reverse_pulls(moved: &[[f64; 3]], faces: &[[u32; 3]], frames: &[Frame], sampl
         .map(|&q| {
             let c = surface.closest_point(q)?;
             let tri = surface.triangle(c.triangle)?;
-            Some((c.triangle, sub(q, c.point), barycentric(c.point, tri)))
+            Some((c.triangle, sub(q, c.point), closest_on_triangle(c.point, tri).2))
         })
         .collect();
     let mut acc = vec![(0.0f64, 0.0f64); moved.len()];
@@ -406,21 +406,6 @@ fn reverse_pulls(moved: &[[f64; 3]], faces: &[[u32; 3]], frames: &[Frame], sampl
         }
     }
     acc.into_iter().map(|(s, w)| (w > 1e-9).then(|| s / w)).collect()
-}
-
-/// Barycentric coordinates of `p` (on the triangle's plane) in `tri`, clamped to the
-/// triangle; the first corner for a degenerate triangle.
-fn barycentric(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
-    let (v0, v1, v2) = (sub(b, a), sub(c, a), sub(p, a));
-    let (d00, d01, d11) = (dot(v0, v0), dot(v0, v1), dot(v1, v1));
-    let (d20, d21) = (dot(v2, v0), dot(v2, v1));
-    let den = d00 * d11 - d01 * d01;
-    if den.abs() <= 1e-20 * d00 * d11 || den == 0.0 {
-        return [1.0, 0.0, 0.0];
-    }
-    let v = ((d11 * d20 - d01 * d21) / den).clamp(0.0, 1.0);
-    let w = ((d00 * d21 - d01 * d20) / den).clamp(0.0, 1.0 - v);
-    [1.0 - v - w, v, w]
 }
 
 /// One-ring neighbours of every vertex (compressed rows, ascending, each once).
