@@ -75,9 +75,9 @@ pub struct EncoderConfig {
     /// Position bit depth of the grid over the sequence box.
     pub bits: u32,
     /// Position bit depth of the base mesh (at most `bits`): coarser base positions cost
-    /// fewer bits and the displacements correct them. `None` follows the QP
-    /// ([`base_bits_for_qp`]).
-    pub base_bits: Option<u32>,
+    /// fewer bits and the displacements correct them: 9 bits beat 8, 10 and 11 at every QP
+    /// of the sweep that chose [`base_ratio_for_qp`].
+    pub base_bits: u32,
     /// Code only the normal component of each displacement.
     pub normal_only: bool,
     /// Frames per group: every `intra_period`-th frame is intra; 1 makes every frame intra.
@@ -101,7 +101,7 @@ impl Default for EncoderConfig {
             subdiv_iterations: 3,
             scheme: SchemeChoice::Mixed,
             bits: 12,
-            base_bits: None,
+            base_bits: 9,
             normal_only: true,
             intra_period: 32,
             inter: InterMode::NnsMeQem,
@@ -129,8 +129,8 @@ impl EncoderConfig {
         if !BITS_RANGE.contains(&self.bits) {
             return err(format!("position bits {} out of range {:?}", self.bits, BITS_RANGE));
         }
-        if !BITS_RANGE.contains(&self.base_bits()) || self.base_bits() > self.bits {
-            return err(format!("base mesh position bits {} must be in {}..={}", self.base_bits(), BITS_RANGE.start(), self.bits));
+        if !BITS_RANGE.contains(&self.base_bits) || self.base_bits > self.bits {
+            return err(format!("base mesh position bits {} must be in {}..={}", self.base_bits, BITS_RANGE.start(), self.bits));
         }
         if self.intra_period == 0 {
             return err("intra period must be at least 1".into());
@@ -151,17 +151,12 @@ impl EncoderConfig {
         self.base_ratio.unwrap_or_else(|| base_ratio_for_qp(self.qp))
     }
 
-    /// Base mesh position bits: as given, else as the QP asks (never above `bits`).
-    pub fn base_bits(&self) -> u32 {
-        self.base_bits.unwrap_or_else(|| base_bits_for_qp(self.qp).min(self.bits))
-    }
-
     /// The sequence header for `frame_count` frames inside the box `[min, max]`.
     pub fn header(&self, frame_count: u32, min: [f64; 3], max: [f64; 3]) -> SequenceHeader {
         SequenceHeader {
             frame_count,
             grid: Grid::over_box(min, max, self.bits),
-            base_bits: self.base_bits(),
+            base_bits: self.base_bits,
             schemes: self.scheme.schemes(self.subdiv_iterations).expect("validated configuration"),
             components: if self.normal_only { 1 } else { 3 },
             aq: self.aq,
@@ -170,24 +165,12 @@ impl EncoderConfig {
 }
 
 /// The base mesh size that suits displacements quantized with `qp`: coarse displacements
-/// (high QP) leave detail to the base mesh, so a small one, and fine displacements pay for
-/// a larger base mesh. Chosen by a sweep over base ratio, base bits and QP on the first 6
-/// frames of four capture sequences, keeping the points on the rate-distortion front
-/// (docs/results.md).
+/// (high QP) go with a small base mesh, fine ones pay for a larger base mesh that follows
+/// the input closer. Chosen by a sweep over base ratio (3 to 20 %), base bits (8 to 11) and
+/// QP (20 to 36) on the first 6 frames of four capture sequences, against the MPEG test
+/// model's points (docs/results.md): 6 % was best up to about 75 dB D1, 12 % above.
 pub fn base_ratio_for_qp(qp: i32) -> f64 {
-    match qp {
-        ..=22 => 0.12,
-        23..=27 => 0.06,
-        _ => 0.03,
-    }
-}
-
-/// The base mesh position bits that suit `qp` (see [`base_ratio_for_qp`]).
-pub fn base_bits_for_qp(qp: i32) -> u32 {
-    match qp {
-        ..=27 => 11,
-        _ => 10,
-    }
+    if qp >= 26 { 0.06 } else { 0.12 }
 }
 
 /// What encoding one frame produced.

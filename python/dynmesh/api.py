@@ -98,8 +98,8 @@ def encode_frames(
 
     Geometry options (see ``DEFAULTS``): qp, base_ratio, subdiv, scheme ("mixed" =
     midpoint then Loop on the last iteration, "midpoint", "loop", or a comma-separated list
-    with one per iteration), bits (position grid), base_bits (base mesh positions, at most bits;
-    base_ratio and base_bits None follow the QP),
+    with one per iteration), bits (position grid), base_bits (base mesh positions, at most bits),
+    base_ratio None follows the QP,
     normal_only, intra_period (1 = every frame intra), inter ("none", "nns", "nns+me",
     "nns+me+qem"), rd_slope (dB per rate doubling, for the intra/inter decision), aq
     (adaptive quantization) with aq_alpha, aq_delta, aq_h.

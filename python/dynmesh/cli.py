@@ -239,8 +239,7 @@ def parser() -> argparse.ArgumentParser:
     _sequence_args(p)
     p.add_argument("--qp", type=int, default=d["qp"], help=f"displacement quantization parameter; +6 doubles the step (default {d['qp']})")
     p.add_argument("--base-ratio", type=float, default=d["base_ratio"],
-                   help="base mesh faces / input faces (default: follows --qp, 0.12 up to QP 22, 0.06 up to 27, "
-                        "0.03 above)")
+                   help="base mesh faces / input faces (default: follows --qp, 0.12 up to QP 25, 0.06 above)")
     p.add_argument("--subdiv", type=int, default=d["subdiv"], help=f"subdivision iterations (default {d['subdiv']})")
     p.add_argument("--scheme", default=d["scheme"],
                    help="subdivision scheme: mixed (midpoint on every iteration but the last, Loop on the last, as the "
@@ -248,7 +247,7 @@ def parser() -> argparse.ArgumentParser:
                         f"(default {d['scheme']})")
     p.add_argument("--bits", type=int, default=d["bits"], help=f"position bits over the sequence box (default {d['bits']})")
     p.add_argument("--base-bits", type=int, default=d["base_bits"],
-                   help="base mesh position bits, at most --bits (default: follows --qp, 11 up to QP 27, 10 above)")
+                   help=f"base mesh position bits, at most --bits (default {d['base_bits']})")
     p.add_argument("--all-components", action="store_true", help="code all three displacement components, not only the normal one")
     p.add_argument("--intra-period", type=int, default=d["intra_period"],
                    help=f"frames per group; each group starts with an intra frame, 1 = all intra (default {d['intra_period']})")
