@@ -5,16 +5,17 @@
 //! `MeshError(path, message, line)`; this module does the per-line and per-value work.
 //!
 //! Hand-written rather than a crate, because the readers must keep what `io.py` pins:
-//! - OBJ: `tobj` keeps separate position and UV index lists, but its `LoadError` is a bare
-//!   enum (no line, no offending token), it has no line continuations, and it drops UVs
-//!   differently when only some corners carry them. Our errors name the line and the
-//!   token, indices may be negative (relative to the lines above), faces may be
-//!   `v`, `v/vt`, `v//vn` or `v/vt/vn` mixed in one file, `\` continues a line (except in
-//!   a comment), `#` starts a comment anywhere, and `mtllib`/`usemtl` are handed back.
-//! - PLY: `ply-rs` builds a map per record (slow for 420k faces) and reports no line
-//!   either. The reader here takes ASCII and binary little and big endian, any scalar
-//!   type, list properties of any length (ragged or not) and extra elements; ASCII errors
-//!   name the line, binary ones the record.
+//! - OBJ: `tobj` keeps separate position and UV index lists (`single_index: false`) and
+//!   triangulates, but its `LoadError` is a fieldless enum: no line, no token, where our
+//!   errors name both. The reader here also keeps, as before: negative indices (relative
+//!   to the lines above), `v`, `v/vt`, `v//vn` and `v/vt/vn` corners mixed in one file, UVs
+//!   dropped with a note when only some corners have one, `\` continuing a line (except a
+//!   comment), `#` comments anywhere, extra vertex values (colours) ignored, and the
+//!   `mtllib`/`usemtl` arguments handed back for Python to resolve.
+//! - PLY: `ply-rs` builds a map per record by default; the reader here is small enough to
+//!   keep io.py's exact messages and their precedence: ASCII and binary little and big
+//!   endian, any scalar type, ragged list properties, extra elements, ASCII errors by
+//!   line, binary ones by record, truncation refused before allocating.
 //!
 //! Numbers are read with the standard library's `f64` parser (exact, and the
 //! Eisel-Lemire algorithm that `fast-float` implements), accepting what Python's
@@ -27,7 +28,6 @@
 //! in blocks of rows on the rayon pool (about 1.8x on 2 cores for OBJ), the GIL released.
 
 use std::borrow::Cow;
-use std::collections::HashMap;
 
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
@@ -36,6 +36,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use rayon::prelude::*;
+use rustc_hash::FxHashMap;
 
 create_exception!(
     _core,
@@ -1017,7 +1018,7 @@ fn parse_ply(data: &[u8]) -> Result<PlyMesh> {
         _ => None,
     };
     let uv = if let Some(uv) = per_corner {
-        Some(unique_corner_uvs(uv, &tris))
+        Some(unique_corner_uvs(uv, &tris, flat, n))
     } else {
         UV_NAMES.iter().find_map(|(u, v)| {
             let (u, v) = (vertex.scalar(u)?, vertex.scalar(v)?);
@@ -1028,16 +1029,32 @@ fn parse_ply(data: &[u8]) -> Result<PlyMesh> {
 }
 
 /// Per-corner UVs (polygon corners laid end to end) made into a UV list in order of first
-/// use and an index per triangle corner; equal UVs (0.0 == -0.0) share one entry.
-fn unique_corner_uvs(uv: &[f64], tris: &[usize]) -> (Vec<f64>, Vec<i64>) {
+/// use and an index per triangle corner; equal UVs (0.0 == -0.0) share one entry, NaNs
+/// never do. `corner_vertex` is each polygon corner's vertex: the UV a vertex had last is
+/// tried before the table of all UVs, which most corners then never touch.
+fn unique_corner_uvs(uv: &[f64], tris: &[usize], corner_vertex: &[f64], vertices: usize) -> (Vec<f64>, Vec<i64>) {
     let key = |x: f64| if x == 0.0 { 0 } else { x.to_bits() };
-    let mut seen: HashMap<(u64, u64), i64> = HashMap::with_capacity(tris.len() / 2);
+    let mut seen: FxHashMap<(u64, u64), i64> = FxHashMap::default();
+    let mut last: Vec<Option<((u64, u64), i64)>> = vec![None; vertices];
     let mut uvs = Vec::new();
     let mut index = Vec::with_capacity(tris.len());
     for &c in tris {
         let (u, v) = (uv[2 * c], uv[2 * c + 1]);
         let next = (uvs.len() / 2) as i64;
-        let i = if u.is_nan() || v.is_nan() { next } else { *seen.entry((key(u), key(v))).or_insert(next) };
+        let i = if u.is_nan() || v.is_nan() {
+            next
+        } else {
+            let k = (key(u), key(v));
+            let cached = &mut last[corner_vertex[c] as usize];
+            match *cached {
+                Some((kc, i)) if kc == k => i,
+                _ => {
+                    let i = *seen.entry(k).or_insert(next);
+                    *cached = Some((k, i));
+                    i
+                }
+            }
+        };
         if i == next {
             uvs.extend_from_slice(&[u, v]);
         }
