@@ -329,6 +329,42 @@ def test_error_line_is_exact_deep_in_a_big_file(tmp_path):
     assert e.value.line == 1501 and "0.5.5" in str(e.value)
 
 
+
+def _outcome(path):
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            m = read_mesh(path)
+    except MeshError as e:
+        return ("error", e.reason, e.line)
+    arrays = [None if a is None else a.tobytes() for a in (m.positions, m.faces, m.uvs, m.uv_faces)]
+    return ("ok", arrays, m.texture, [str(w.message).removeprefix(f"{path}: ") for w in caught])
+
+
+def test_big_files_parse_in_pieces_as_in_one_pass(tmp_path):
+    """Files of several MB are cut into pieces parsed in parallel; a backslash anywhere keeps
+    the one-pass parse, so each variant is read both ways and must come out the same."""
+    rng = np.random.default_rng(5)
+    n = 40000
+    lines = ["mtllib lib.mtl"]
+    for i in range(n):  # interleaved, with relative indices reaching back across pieces
+        lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in rng.random((3, 3)).tolist()]
+        lines += [f"vt {rng.random()!r} {rng.random()!r}", f"usemtl m{i % 3}"]
+        lines.append(f"f -3/-1 -2/-1 {-3 - int(rng.integers(0, 3 * i + 1))}/-1" if i else "f -3/-1 -2/-1 -1/-1")
+    write_text(tmp_path / "lib.mtl", "newmtl m1\nmap_Kd one.png\n")
+    bad_number, bad_index, not_finite = list(lines), list(lines), list(lines)
+    bad_number[len(lines) * 3 // 4] = "v 1 2 0.5.5"
+    bad_index[len(lines) // 2 + 3] = "f 1 2 999999"
+    not_finite[len(lines) * 2 // 3] = "v 1 nan 2"
+    for variant in (lines, bad_number, bad_index, not_finite):
+        text = "\n".join(variant) + "\n"
+        assert len(text) > 4 << 20
+        pieces = _outcome(write_text(tmp_path / "pieces.obj", text))
+        one_pass = _outcome(write_text(tmp_path / "one_pass.obj", text + "# one pass: \\\n"))
+        assert pieces == one_pass
+    assert pieces[0] == "error" and pieces[2] == len(lines) * 2 // 3 + 1
+
+
 @pytest.mark.parametrize("name, content, fragment", [
     ("none.obj", None, "cannot read"),
     ("mesh.stl", "solid x", "unknown mesh format"),

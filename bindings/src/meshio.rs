@@ -410,6 +410,30 @@ impl Obj {
         Ok(())
     }
 
+    /// Adds the lines of `part`, which follows `lines_before` lines of this file.
+    fn append(&mut self, part: Obj, lines_before: usize) {
+        let (v_before, vt_before) = (self.positions.len() / 3, self.uvs.len() / 2);
+        self.bad_position = self.bad_position.or(part.bad_position.map(|(line, x)| (line + lines_before, x)));
+        self.bad_uv = self.bad_uv.or(part.bad_uv.map(|(line, x)| (line + lines_before, x)));
+        self.positions.extend_from_slice(&part.positions);
+        self.uvs.extend_from_slice(&part.uvs);
+        self.corner_v.extend_from_slice(&part.corner_v);
+        self.corner_vt.extend_from_slice(&part.corner_vt);
+        self.corners_with_uv += part.corners_with_uv;
+        self.faces.extend(part.faces.into_iter().map(|f| ObjFace {
+            line: f.line + lines_before,
+            v_before: f.v_before + v_before,
+            vt_before: f.vt_before + vt_before,
+            ..f
+        }));
+        self.mtllibs.extend(part.mtllibs);
+        for m in part.materials {
+            if !self.materials.contains(&m) {
+                self.materials.push(m);
+            }
+        }
+    }
+
     /// Fan triangles of 0-based indices from OBJ ones (1-based, or negative relative to
     /// the lines above); the first bad corner is the error.
     fn triangles(&self, raw: &[i64], n: usize, what: &str, before: impl Fn(&ObjFace) -> usize) -> Result<Vec<i64>> {
@@ -558,10 +582,47 @@ fn python_text(data: &[u8]) -> Cow<'_, str> {
     }
 }
 
+/// Below this many bytes a file is parsed in one piece.
+const BYTES_PER_PIECE: usize = 1 << 20;
+
+/// The lines of `text` as an [`Obj`]. A file without backslashes (no line continues) is cut
+/// at newlines into pieces parsed on the rayon pool and joined in order: indices, line
+/// numbers and the first error come out as from one pass.
+fn scan_obj(text: &str) -> Result<Obj> {
+    let pieces = (text.len() / BYTES_PER_PIECE).clamp(1, 4 * rayon::current_num_threads());
+    if pieces == 1 || memchr::memchr(b'\\', text.as_bytes()).is_some() {
+        let mut obj = Obj::default();
+        logical_lines(text, |number, line| obj.line(number, line))?;
+        return Ok(obj);
+    }
+    let bytes = text.as_bytes();
+    let mut cuts = vec![0];
+    for k in 1..pieces {
+        let at = (k * bytes.len() / pieces).max(cuts[k - 1]);
+        cuts.push(memchr::memchr(b'\n', &bytes[at..]).map_or(bytes.len(), |e| at + e + 1));
+    }
+    cuts.push(bytes.len());
+    let parts: Vec<(Result<Obj>, usize)> = cuts
+        .par_windows(2)
+        .map(|w| {
+            let piece = &text[w[0]..w[1]];
+            let mut obj = Obj::default();
+            (logical_lines(piece, |number, line| obj.line(number, line)).map(|_| obj), memchr::memchr_iter(b'\n', piece.as_bytes()).count())
+        })
+        .collect();
+    let mut all = Obj::default();
+    let mut lines_before = 0;
+    for (part, newlines) in parts {
+        let part = part.map_err(|e| Error { line: e.line.map(|l| l + lines_before), ..e })?;
+        all.append(part, lines_before);
+        lines_before += newlines;
+    }
+    Ok(all)
+}
+
 fn parse_obj(data: &[u8]) -> Result<ObjMesh> {
     let text = python_text(data.strip_prefix(b"\xef\xbb\xbf").unwrap_or(data));
-    let mut obj = Obj::default();
-    logical_lines(&text, |number, line| obj.line(number, line))?;
+    let mut obj = scan_obj(&text)?;
     if let Some((line, xyz)) = obj.bad_position {
         return Err(at_line(line, format!("coordinate is not finite: {}", floats_text(&xyz))));
     }
