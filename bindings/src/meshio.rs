@@ -312,8 +312,12 @@ fn mesh_arrays(py: Python<'_>, positions: Vec<f64>, faces: Vec<i64>, uv: Option<
     (rows(positions, 3), tris(faces), uvs, uv_faces)
 }
 
-/// Fan triangulation of polygons laid end to end: corner numbers (T*3).
-fn fan(sizes: &[usize]) -> Vec<usize> {
+/// Fan triangulation of polygons laid end to end: corner numbers (T*3), or None when every
+/// polygon is a triangle already.
+fn fan(sizes: &[usize]) -> Option<Vec<usize>> {
+    if sizes.iter().all(|&s| s == 3) {
+        return None;
+    }
     let mut out = Vec::with_capacity(3 * sizes.iter().map(|&s| s - 2).sum::<usize>());
     let mut base = 0;
     for &s in sizes {
@@ -322,7 +326,7 @@ fn fan(sizes: &[usize]) -> Vec<usize> {
         }
         base += s;
     }
-    out
+    Some(out)
 }
 
 fn polygon_note(sizes: &[usize], notes: &mut Vec<String>) {
@@ -1078,7 +1082,7 @@ fn parse_ply(data: &[u8]) -> Result<PlyMesh> {
         let (what, line) = face.record(i, "face");
         return Err(Error { message: format!("{what} has fewer than 3 corners"), line });
     }
-    if let Some(k) = flat.iter().position(|&x| !(x >= 0.0 && x < n as f64 && x == x.floor())) {
+    if let Some(k) = flat.iter().position(|&x| !(x >= 0.0 && x < n as f64 && x as i64 as f64 == x)) {
         let mut owner = 0;
         let mut seen = sizes[0];
         while seen <= k {
@@ -1090,16 +1094,18 @@ fn parse_ply(data: &[u8]) -> Result<PlyMesh> {
         return Err(Error { message, line });
     }
     let tris = fan(sizes);
+    let corners = tris.as_ref().map_or(flat.len(), Vec::len);
+    let corner = |k: usize| tris.as_ref().map_or(k, |t| t[k]);
     let mut notes = Vec::new();
     polygon_note(sizes, &mut notes);
-    let faces: Vec<i64> = tris.iter().map(|&c| flat[c] as i64).collect();
+    let faces: Vec<i64> = (0..corners).map(|k| flat[corner(k)] as i64).collect();
 
     let per_corner = match face.column("texcoord").map(|c| &c.values) {
         Some(Values::List(counts, uv)) if counts.iter().zip(sizes).all(|(&c, &s)| c == 2 * s) => Some(uv),
         _ => None,
     };
     let uv = if let Some(uv) = per_corner {
-        Some(unique_corner_uvs(uv, &tris, flat, n))
+        Some(unique_corner_uvs(uv, (0..corners).map(corner), flat, n))
     } else {
         UV_NAMES.iter().find_map(|(u, v)| {
             let (u, v) = (vertex.scalar(u)?, vertex.scalar(v)?);
@@ -1110,16 +1116,17 @@ fn parse_ply(data: &[u8]) -> Result<PlyMesh> {
 }
 
 /// Per-corner UVs (polygon corners laid end to end) made into a UV list in order of first
-/// use and an index per triangle corner; equal UVs (0.0 == -0.0) share one entry, NaNs
-/// never do. `corner_vertex` is each polygon corner's vertex: the UV a vertex had last is
-/// tried before the table of all UVs, which most corners then never touch.
-fn unique_corner_uvs(uv: &[f64], tris: &[usize], corner_vertex: &[f64], vertices: usize) -> (Vec<f64>, Vec<i64>) {
+/// use and an index per triangle corner (`tris`: the polygon corner of each); equal UVs
+/// (0.0 == -0.0) share one entry, NaNs never do. `corner_vertex` is each polygon corner's
+/// vertex: the UV a vertex had last is tried before the table of all UVs, which most
+/// corners then never touch.
+fn unique_corner_uvs(uv: &[f64], tris: impl ExactSizeIterator<Item = usize>, corner_vertex: &[f64], vertices: usize) -> (Vec<f64>, Vec<i64>) {
     let key = |x: f64| if x == 0.0 { 0 } else { x.to_bits() };
     let mut seen: FxHashMap<(u64, u64), i64> = FxHashMap::default();
     let mut last: Vec<Option<((u64, u64), i64)>> = vec![None; vertices];
     let mut uvs = Vec::new();
     let mut index = Vec::with_capacity(tris.len());
-    for &c in tris {
+    for c in tris {
         let (u, v) = (uv[2 * c], uv[2 * c + 1]);
         let next = (uvs.len() / 2) as i64;
         let i = if u.is_nan() || v.is_nan() {
