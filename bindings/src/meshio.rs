@@ -24,8 +24,12 @@
 //!
 //! Floats are written with their shortest round-trip digits (`ryu`) laid out as Python's
 //! `repr` (`0.0001`, `1e-05`, `1e+16`, `1.0`), so a file reads back to the same float64
-//! values and is byte for byte what the Python writer (`%r`) produced. Lines are formatted
-//! in blocks of rows on the rayon pool (about 1.8x on 2 cores for OBJ), the GIL released.
+//! values and is byte for byte what the Python writer (`%r`) produced.
+//!
+//! Lines are formatted in blocks of rows, and OBJ files over 1 MB parsed in pieces, on the
+//! rayon pool with the GIL released. On 2 idle cores that formats the 210k positions of
+//! bench_io's frame in 24 ms instead of 47 and its faces in 24 instead of 42; the gain
+//! shrinks to nothing while other jobs hold the cores.
 
 use std::borrow::Cow;
 
