@@ -111,6 +111,39 @@ def test_big_files_round_trip_in_every_format(tmp_path):
         assert np.array_equal(back.positions, sphere.positions) and np.array_equal(back.faces, sphere.faces)
 
 
+
+def test_floats_are_written_as_python_repr():
+    """The Rust writer's text is Python's repr, so files match what the %r writer produced."""
+    rng = np.random.default_rng(3)
+    values = rng.integers(0, 2**64, (4000, 3), dtype=np.uint64).view(np.float64)
+    values[~np.isfinite(values)] = 0.5
+    values[:4] = [[0.0001, 1e-05, 1e16], [1e15, -0.0, 123456789.0], [5e-324, 0.1, 2.5e-5], [1e22, 1.5, -7.0]]
+    expected = "".join("v %r %r %r\n" % tuple(row) for row in values.tolist())
+    assert mesh_io._core.format_rows(values, "v").decode() == expected
+    assert mesh_io._core.format_rows(values, "").decode() == expected.replace("v ", "")
+
+
+def test_obj_text_is_what_the_format_says(tmp_path):
+    mesh = Mesh([[0.1, 1e-05, 1e16], [1.0, -0.0, 2.5], [3.0, 4.0, 5.0]], [[0, 1, 2]], [[0.5, 0.25], [1.0, 0.0]], [[1, 0, 1]])
+    write_mesh(tmp_path / "m.obj", mesh)
+    assert (tmp_path / "m.obj").read_text() == (
+        "# written by dynmesh\nv 0.1 1e-05 1e+16\nv 1.0 -0.0 2.5\nv 3.0 4.0 5.0\nvt 0.5 0.25\nvt 1.0 0.0\nf 1/2 2/1 3/2\n")
+
+
+@pytest.mark.parametrize("ascii", [False, True])
+def test_ply_text_is_what_the_format_says(tmp_path, ascii):
+    mesh = Mesh([[0.1, 1e-05, 1e16], [1.0, -0.0, 2.5], [3.0, 4.0, 5.0]], [[0, 1, 2]])
+    write_mesh(tmp_path / "m.ply", mesh, ascii=ascii)
+    header = (f"ply\nformat {'ascii' if ascii else 'binary_little_endian'} 1.0\ncomment written by dynmesh\n"
+              "element vertex 3\nproperty double x\nproperty double y\nproperty double z\n"
+              "element face 1\nproperty list uchar int vertex_indices\nend_header\n").encode()
+    if ascii:
+        body = b"0.1 1e-05 1e+16\n1.0 -0.0 2.5\n3.0 4.0 5.0\n3 0 1 2\n"
+    else:
+        body = mesh.positions.astype("<f8").tobytes() + struct.pack("<B3i", 3, 0, 1, 2)
+    assert (tmp_path / "m.ply").read_bytes() == header + body
+
+
 # --------------------------------------------------------------------------- hand-written OBJ
 
 CUBE_QUADS = """# a cube made of quads
@@ -146,6 +179,30 @@ def test_negative_indices_count_back_from_the_face_line(tmp_path):
     path = write_text(tmp_path / "neg.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 0 0 1\nf -4 -1 -2\n")
     mesh = read_quietly(path)
     assert mesh.faces.tolist() == [[0, 1, 2], [0, 3, 2]]
+
+
+
+def test_uv_index_lists_are_kept_separate_and_may_be_negative(tmp_path):
+    text = ("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nvt 0.25 0.5\nvt 0.75 0.5\n"
+            "f 1/2 2/1 3/2\nvt 0 1\nf 4/-1 3/-2 2/-3\n")
+    mesh = read_quietly(write_text(tmp_path / "uv.obj", text))
+    assert mesh.faces.tolist() == [[0, 1, 2], [3, 2, 1]]
+    assert mesh.uv_faces.tolist() == [[1, 0, 1], [2, 1, 0]]
+    assert mesh.uvs.tolist() == [[0.25, 0.5], [0.75, 0.5], [0.0, 1.0]]
+
+
+def test_corners_without_uvs_drop_the_uvs_with_a_warning(tmp_path):
+    path = write_text(tmp_path / "some.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/1\nf 1 2 3\n")
+    with pytest.warns(MeshWarning, match="some face corners have texture coordinates"):
+        mesh = read_mesh(path)
+    assert mesh.uvs is None and mesh.uv_faces is None and mesh.face_count == 2
+
+
+def test_python_number_forms_bom_and_unicode_spaces_are_read(tmp_path):
+    text = "\ufeffv 1_000.5 +2 .5\nv 1e2\u00a00 -0.0\nv 0 1 0\nf +1 2 3\n"
+    mesh = read_quietly(write_text(tmp_path / "forms.obj", text))
+    assert mesh.positions.tolist() == [[1000.5, 2.0, 0.5], [100.0, 0.0, -0.0], [0.0, 1.0, 0.0]]
+    assert mesh.faces.tolist() == [[0, 1, 2]]
 
 
 def test_all_face_corner_forms_agree(tmp_path):
@@ -248,6 +305,11 @@ TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\n"
     ("v 0 0 0\nv 1 0 0\nv 0 1e999 0\nf 1 2 3\n", 3, "not finite"),
     (TRIANGLE + "vt 0 0\nf 1/1 2/1 3/2\n", 5, "texture index"),
     (TRIANGLE + "v 1 2\nf 1 2 3\n", 4, "needs at least 3 numbers"),
+    (TRIANGLE + "f 1/2/3/4 2 3\n", 4, "bad face corner '1/2/3/4'"),
+    (TRIANGLE + "f /1 2 3\n", 4, "bad face corner '/1'"),
+    (TRIANGLE + "vt 0 0\nf 1/1 2/x 3/1\n", 5, "bad index 'x'"),
+    (TRIANGLE + "f 1 2 \\\n 3 4\n", 4, "vertex index 4 is out of range (1..3 or -1..-3)"),
+    ("v 0 0 0 # ok\nv 1 0 0\nv 0 1 0\nvt 0 nan\nf 1/1 2/1 3/1\n", 4, "texture coordinate is not finite: [0.0, nan]"),
 ])
 def test_obj_errors_name_file_and_line(tmp_path, text, line, fragment):
     path = write_text(tmp_path / "bad.obj", text)
@@ -265,6 +327,42 @@ def test_error_line_is_exact_deep_in_a_big_file(tmp_path):
     with pytest.raises(MeshError) as e:
         read_mesh(write_text(tmp_path / "bad.obj", "\n".join(lines)))
     assert e.value.line == 1501 and "0.5.5" in str(e.value)
+
+
+
+def _outcome(path):
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            m = read_mesh(path)
+    except MeshError as e:
+        return ("error", e.reason, e.line)
+    arrays = [None if a is None else a.tobytes() for a in (m.positions, m.faces, m.uvs, m.uv_faces)]
+    return ("ok", arrays, m.texture, [str(w.message).removeprefix(f"{path}: ") for w in caught])
+
+
+def test_big_files_parse_in_pieces_as_in_one_pass(tmp_path):
+    """Files of several MB are cut into pieces parsed in parallel; a backslash anywhere keeps
+    the one-pass parse, so each variant is read both ways and must come out the same."""
+    rng = np.random.default_rng(5)
+    n = 40000
+    lines = ["mtllib lib.mtl"]
+    for i in range(n):  # interleaved, with relative indices reaching back across pieces
+        lines += [f"v {x!r} {y!r} {z!r}" for x, y, z in rng.random((3, 3)).tolist()]
+        lines += [f"vt {rng.random()!r} {rng.random()!r}", f"usemtl m{i % 3}"]
+        lines.append(f"f -3/-1 -2/-1 {-3 - int(rng.integers(0, 3 * i + 1))}/-1" if i else "f -3/-1 -2/-1 -1/-1")
+    write_text(tmp_path / "lib.mtl", "newmtl m1\nmap_Kd one.png\n")
+    bad_number, bad_index, not_finite = list(lines), list(lines), list(lines)
+    bad_number[len(lines) * 3 // 4] = "v 1 2 0.5.5"
+    bad_index[len(lines) // 2 + 3] = "f 1 2 999999"
+    not_finite[len(lines) * 2 // 3] = "v 1 nan 2"
+    for variant in (lines, bad_number, bad_index, not_finite):
+        text = "\n".join(variant) + "\n"
+        assert len(text) > 4 << 20
+        pieces = _outcome(write_text(tmp_path / "pieces.obj", text))
+        one_pass = _outcome(write_text(tmp_path / "one_pass.obj", text + "# one pass: \\\n"))
+        assert pieces == one_pass
+    assert pieces[0] == "error" and pieces[2] == len(lines) * 2 // 3 + 1
 
 
 @pytest.mark.parametrize("name, content, fragment", [
@@ -336,6 +434,43 @@ def test_binary_ply_index_error_names_the_face(tmp_path):
     (tmp_path / "i.ply").write_bytes(header + struct.pack("<9f", *range(9)) + struct.pack("<B3i", 3, 0, 1, 3))
     with pytest.raises(MeshError, match="face 0: vertex index 3 is out of range"):
         read_mesh(tmp_path / "i.ply")
+
+
+
+def test_ply_list_length_errors(tmp_path):
+    header = ply_header("ascii", 3, 1, "property float x\nproperty float y\nproperty float z\n", "property list uchar int vertex_indices")
+    (tmp_path / "a.ply").write_bytes(header + b"0 0 0\n1 0 0\n0 1 0\n2.5 0 1 2\n")
+    with pytest.raises(MeshError, match="bad list length in 'face'") as e:
+        read_mesh(tmp_path / "a.ply")
+    assert e.value.line == 14
+    header = ply_header("binary_little_endian", 3, 1, "property float x\nproperty float y\nproperty float z\n", "property list char int vertex_indices")
+    (tmp_path / "b.ply").write_bytes(header + struct.pack("<9f", *range(9)) + struct.pack("<b3i", -3, 0, 1, 2))
+    with pytest.raises(MeshError, match="negative list length in 'face' record 0") as e:
+        read_mesh(tmp_path / "b.ply")
+    assert e.value.line is None
+
+
+def test_ply_ragged_binary_lists_and_per_corner_uvs(tmp_path):
+    header = ply_header("binary_little_endian", 4, 2, "property double x\nproperty double y\nproperty double z\n",
+                        "property list uchar int vertex_indices\nproperty list uchar float texcoord")
+    body = struct.pack("<12d", 0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0)
+    body += struct.pack("<B4iB8f", 4, 0, 1, 2, 3, 8, 0, 0, 1, 0, 1, 1, 0, 1)
+    body += struct.pack("<B3iB6f", 3, 2, 1, 0, 6, 1, 1, 1, 0, 0.5, 0.5)
+    (tmp_path / "r.ply").write_bytes(header + body)
+    with pytest.warns(MeshWarning, match="1 polygon"):
+        mesh = read_mesh(tmp_path / "r.ply")
+    assert mesh.faces.tolist() == [[0, 1, 2], [0, 2, 3], [2, 1, 0]]
+    assert mesh.uvs.tolist() == [[0, 0], [1, 0], [1, 1], [0, 1], [0.5, 0.5]]  # first use order, shared where equal
+    assert mesh.uv_faces.tolist() == [[0, 1, 2], [0, 2, 3], [2, 1, 4]]
+
+
+def test_parser_errors_carry_message_and_line():
+    with pytest.raises(mesh_io._core.MeshFormatError) as e:
+        mesh_io._core.read_obj(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n")
+    assert e.value.args == ("bad index 'x'", 4)
+    with pytest.raises(mesh_io._core.MeshFormatError) as e:
+        mesh_io._core.read_ply(b"ply\nformat ascii 1.0\nend_header\n")
+    assert e.value.args == ("PLY has no 'vertex' element", None)
 
 
 def test_mesh_errors_survive_pickling():

@@ -4,6 +4,7 @@
 //! frames side by side.
 
 mod colour;
+mod meshio;
 mod transfer;
 mod uv;
 use numpy::ndarray::Array2;
@@ -311,6 +312,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     colour::register(m)?;
     uv::register(m)?;
     transfer::register(m)?;
+    meshio::register(m)?;
     m.add("DecodeError", m.py().get_type::<DecodeError>())?;
     Ok(())
 }

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -12,7 +11,7 @@ import numpy as np
 
 from . import _core
 from . import texture as _texture
-from .io import read_image
+from .io import _atomic_write, read_image
 from .mesh import Mesh
 
 #: Encoder defaults, as the Rust core defines them; ``dynmesh encode --help`` documents each.
@@ -234,21 +233,7 @@ def _uv_faces(m: Mesh) -> np.ndarray:
     return m.uv_faces if m.uv_faces is not None else m.faces
 
 
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
 def write_bytes_atomic(path: str | os.PathLike, data: bytes) -> None:
-    """Writes ``data`` to a temporary file beside ``path`` and renames it into place."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent or ".")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Writes ``data`` to a temporary file beside ``path``, flushes it to disk and renames it
+    into place (the mesh writers' atomic write)."""
+    _atomic_write(Path(path), [data])
