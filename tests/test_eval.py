@@ -370,12 +370,12 @@ def test_tm14_experiment_reads_the_shared_test_model_points():
     if not (SHARED_DATA.parent / "anchors" / "tm14_geometry_anchor.csv").is_file():
         pytest.skip("shared anchors not present")
     exp = evaluate.load_experiment(Path(__file__).resolve().parents[1] / "experiments" / "tm14_intra.toml")
-    assert exp.anchor == "tm14-ai" and [v.name for v in exp.variants] == ["tm14-ai", "dynmesh-ai", "draco"]
+    assert exp.anchor == "tm14-ai" and [v.name for v in exp.variants] == ["tm14-ai", "dynmesh-ai", "no-refit", "midpoint", "draco"]
     assert all(len(s.frames) == 6 for s in exp.sequences)
     points = exp.variant("tm14-ai").points  # the file's peaks and 6-frame bytes passed the checks
     for s in exp.sequences:
         assert [p["rate"] for p in points if p["sequence"] == s.name] == ["r1", "r2", "r3", "r4", "r5"]
-    assert len(evaluate.plan_runs(exp)) == 4 * (6 + 5)
+    assert len(evaluate.plan_runs(exp)) == 4 * (3 * 5 + 5)
 
 
 # ---------------------------------------------------------------- BD-rate
