@@ -10,6 +10,8 @@
 //! interpolated linearly: a texture is mapped piecewise linearly whatever smoothing the
 //! positions get.
 
+use rayon::prelude::*;
+
 use crate::mesh::{edge_key, EdgeMap};
 
 /// How one iteration places its new vertices.
@@ -150,6 +152,7 @@ impl Stencils {
     /// positions summed in row order, starting from zero.
     pub fn apply(&self, p: &[[f64; 3]]) -> Vec<[f64; 3]> {
         (0..self.rows())
+            .into_par_iter()
             .map(|v| {
                 self.row(v).iter().fold([0.0; 3], |acc, &(u, w)| {
                     let q = p[u as usize];
