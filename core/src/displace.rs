@@ -8,7 +8,7 @@
 use rayon::prelude::*;
 
 use crate::bvh::{closest_on_triangle, Bvh, SurfacePoint};
-use crate::mesh::{add, cross, dot, normalize, scale, sub, vertex_normals};
+use crate::mesh::{add, cross, dot, normalize, scale, sub, vertex_normals, Adjacency};
 
 /// A vertex's local frame, rows `[n, t, b]`: unit normal, tangent, bitangent.
 pub type Frame = [[f64; 3]; 3];
@@ -295,7 +295,7 @@ pub fn refine_normal_fit(
     if target.is_empty() || params.rounds == 0 {
         return s;
     }
-    let rings = Rings::new(sub_positions.len(), sub_faces);
+    let rings = Adjacency::new(sub_positions.len(), sub_faces);
     let initial = face_normals(sub_positions, sub_faces);
     let samples = if params.reverse > 0.0 { target_samples(target) } else { Vec::new() };
     let mut weight = params.smoothing;
@@ -314,12 +314,12 @@ pub fn refine_normal_fit(
         }
         let moved = deformed(sub_positions, frames, &s);
         for i in flipped_vertices(&moved, sub_faces, &initial) {
-            if let Some(m) = rings.mean(i, &s) {
+            if let Some(m) = ring_mean(&rings, i, &s) {
                 s[i] = m;
             }
         }
         if round + 1 < params.rounds {
-            s = rings.smoothed(&s, weight);
+            s = ring_smoothed(&rings, &s, weight);
         }
         weight *= params.decay;
     }
@@ -408,48 +408,18 @@ fn reverse_pulls(moved: &[[f64; 3]], faces: &[[u32; 3]], frames: &[Frame], sampl
     acc.into_iter().map(|(s, w)| (w > 1e-9).then(|| s / w)).collect()
 }
 
-/// One-ring neighbours of every vertex (compressed rows, ascending, each once).
-struct Rings {
-    start: Vec<usize>,
-    list: Vec<u32>,
+/// The mean of `s` over the one-ring of vertex `i`; None for an isolated vertex.
+fn ring_mean(rings: &Adjacency, i: usize, s: &[f64]) -> Option<f64> {
+    let r = rings.of(i);
+    (!r.is_empty()).then(|| r.iter().map(|&j| s[j as usize]).sum::<f64>() / r.len() as f64)
 }
 
-impl Rings {
-    fn new(n: usize, faces: &[[u32; 3]]) -> Self {
-        let mut pairs: Vec<(u32, u32)> = faces
-            .iter()
-            .filter(|f| f.iter().all(|&v| (v as usize) < n))
-            .flat_map(|f| (0..3).flat_map(move |k| [(f[k], f[(k + 1) % 3]), (f[(k + 1) % 3], f[k])]))
-            .filter(|(a, b)| a != b)
-            .collect();
-        pairs.sort_unstable();
-        pairs.dedup();
-        let mut start = vec![0usize; n + 1];
-        for &(a, _) in &pairs {
-            start[a as usize + 1] += 1;
-        }
-        for i in 0..n {
-            start[i + 1] += start[i];
-        }
-        Self { start, list: pairs.into_iter().map(|p| p.1).collect() }
-    }
-
-    fn of(&self, i: usize) -> &[u32] {
-        &self.list[self.start[i]..self.start[i + 1]]
-    }
-
-    fn mean(&self, i: usize, s: &[f64]) -> Option<f64> {
-        let r = self.of(i);
-        (!r.is_empty()).then(|| r.iter().map(|&j| s[j as usize]).sum::<f64>() / r.len() as f64)
-    }
-
-    /// `s` moved by `weight` towards the mean of each vertex's ring.
-    fn smoothed(&self, s: &[f64], weight: f64) -> Vec<f64> {
-        (0..s.len())
-            .into_par_iter()
-            .map(|i| self.mean(i, s).map_or(s[i], |m| s[i] + weight * (m - s[i])))
-            .collect()
-    }
+/// `s` moved by `weight` towards the mean of each vertex's ring.
+fn ring_smoothed(rings: &Adjacency, s: &[f64], weight: f64) -> Vec<f64> {
+    (0..s.len())
+        .into_par_iter()
+        .map(|i| ring_mean(rings, i, s).map_or(s[i], |m| s[i] + weight * (m - s[i])))
+        .collect()
 }
 
 #[cfg(test)]

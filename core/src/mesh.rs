@@ -141,6 +141,40 @@ pub fn vertex_normals(positions: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3
     acc.into_iter().map(normalize).collect()
 }
 
+/// Neighbour lists of a face list over `n` vertices (indices in range), sorted and without repeats
+/// (compressed rows: neighbours of `v` are `adj[start[v]..start[v + 1]]`).
+pub struct Adjacency {
+    start: Vec<usize>,
+    adj: Vec<u32>,
+}
+
+impl Adjacency {
+    pub fn new(n: usize, faces: &[[u32; 3]]) -> Self {
+        let mut lists = vec![Vec::new(); n];
+        for f in faces {
+            for k in 0..3 {
+                let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
+                lists[a].push(b as u32);
+                lists[b].push(a as u32);
+            }
+        }
+        let mut start = Vec::with_capacity(n + 1);
+        let mut adj = Vec::new();
+        start.push(0);
+        for mut l in lists {
+            l.sort_unstable();
+            l.dedup();
+            adj.extend(l);
+            start.push(adj.len());
+        }
+        Self { start, adj }
+    }
+
+    pub fn of(&self, v: usize) -> &[u32] {
+        &self.adj[self.start[v]..self.start[v + 1]]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,6 +7,7 @@
 //! skip flag (all three components zero; context: how many coded neighbours were skipped)
 //! and otherwise three signed integers with adaptive models.
 
+use crate::mesh::Adjacency;
 use crate::ec::{self, BitModel, IntModel};
 
 /// Coding contexts, shared by encoder and decoder so that both adapt identically.
@@ -18,40 +19,6 @@ struct Models {
 impl Models {
     fn new() -> Self {
         Self { skip: [BitModel::default(); 3], residual: std::array::from_fn(|_| IntModel::new(0)) }
-    }
-}
-
-/// Neighbour lists of a face list over `n` vertices, sorted and without repeats
-/// (compressed rows: neighbours of `v` are `adj[start[v]..start[v + 1]]`).
-struct Adjacency {
-    start: Vec<usize>,
-    adj: Vec<u32>,
-}
-
-impl Adjacency {
-    fn new(n: usize, faces: &[[u32; 3]]) -> Self {
-        let mut lists = vec![Vec::new(); n];
-        for f in faces {
-            for k in 0..3 {
-                let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
-                lists[a].push(b as u32);
-                lists[b].push(a as u32);
-            }
-        }
-        let mut start = Vec::with_capacity(n + 1);
-        let mut adj = Vec::new();
-        start.push(0);
-        for mut l in lists {
-            l.sort_unstable();
-            l.dedup();
-            adj.extend(l);
-            start.push(adj.len());
-        }
-        Self { start, adj }
-    }
-
-    fn of(&self, v: usize) -> &[u32] {
-        &self.adj[self.start[v]..self.start[v + 1]]
     }
 }
 
