@@ -94,6 +94,38 @@ impl Bvh {
         Self { pairs, tris, ids, slot }
     }
 
+    /// The same hierarchy over the same `faces` (the list given to [`Bvh::new`]) at new
+    /// `positions`: the tree is kept and its boxes are recomputed, which costs a fraction of a
+    /// build. Queries answer exactly as on a new build (answers never depend on the tree's
+    /// shape); they slow down only when the positions moved far. Panics if `faces` has
+    /// another length than the indexed list.
+    pub fn refitted(&self, positions: &[[f64; 3]], faces: &[[u32; 3]]) -> Self {
+        assert_eq!(faces.len(), self.ids.len(), "Bvh::refitted: the face list it was built on");
+        let tris: Vec<[[f64; 3]; 3]> = self.ids.iter().map(|&id| faces[id as usize].map(|v| positions[v as usize])).collect();
+        let pad = pad(&tris);
+        let mut pairs = self.pairs.clone();
+        // Children are pushed after their parents, so a reverse sweep meets them first.
+        for p in (0..pairs.len()).rev() {
+            for s in 0..2 {
+                let (link, count) = (pairs[p].link[s], pairs[p].count[s]);
+                let bx = if count > 0 {
+                    let leaf = &tris[link as usize..(link + count) as usize];
+                    leaf.iter().skip(1).fold(triangle_box(&leaf[0], pad), |acc, t| union(acc, triangle_box(t, pad)))
+                } else if p == 0 && s == 1 {
+                    continue; // the root pair's unused side
+                } else {
+                    let c = &pairs[link as usize];
+                    let side = |k: usize, j: usize| (f64::from(c.lo[k][j]), f64::from(c.hi[k][j]));
+                    let lo = [0, 1, 2].map(|k| fmin(side(k, 0).0, side(k, 1).0));
+                    let hi = [0, 1, 2].map(|k| fmax(side(k, 0).1, side(k, 1).1));
+                    (lo, hi)
+                };
+                set_box(&mut pairs[p], s, bx);
+            }
+        }
+        Self { pairs, tris, ids: self.ids.clone(), slot: self.slot.clone() }
+    }
+
     /// Corners of triangle `id` (an index into the face list given to [`Bvh::new`]).
     pub fn triangle(&self, id: u32) -> Option<[[f64; 3]; 3]> {
         self.tris.get(*self.slot.get(id as usize)? as usize).copied()
@@ -118,8 +150,27 @@ impl Bvh {
     /// The point of the surface nearest to `q`; `None` only for an empty hierarchy. On equal
     /// distance the lowest triangle index wins.
     pub fn closest_point(&self, q: [f64; 3]) -> Option<SurfacePoint> {
-        let mut best: Option<SurfacePoint> = None;
-        let mut best_d2 = f64::INFINITY;
+        self.closest_point_from(q, None)
+    }
+
+    /// [`Bvh::closest_point`], searched from triangle `hint` (an index into the face list;
+    /// out of range is ignored): the same answer, found faster when the hint is near it, as
+    /// the closest triangle of a nearby query or of the previous round of an iteration is.
+    pub fn closest_point_near(&self, q: [f64; 3], hint: u32) -> Option<SurfacePoint> {
+        let start = self.triangle(hint).map(|tri| {
+            let point = closest_on_triangle(q, tri).0;
+            let d = sub(point, q);
+            SurfacePoint { point, triangle: hint, dist2: dot(d, d) }
+        });
+        self.closest_point_from(q, start)
+    }
+
+    /// The traversal behind both closest-point queries, from a known surface point: every
+    /// box that may hold a point at most as near is still visited (ties go to the lowest
+    /// index), so the start changes the work, never the answer.
+    fn closest_point_from(&self, q: [f64; 3], start: Option<SurfacePoint>) -> Option<SurfacePoint> {
+        let mut best = start;
+        let mut best_d2 = start.map_or(f64::INFINITY, |b| b.dist2);
         let mut stack = [(ROOT, 0.0f64); STACK];
         let mut sp = usize::from(!self.pairs.is_empty());
         while sp > 0 {
@@ -299,12 +350,16 @@ fn build(pairs: &mut Vec<Pair>, node: u32, items: &mut [Item], first: u32, boxes
         let r = build(pairs, 2 * child + 1, right, first + mid as u32, boxes);
         union(l, r)
     };
+    set_box(&mut pairs[p], s, bx);
+    bx
+}
+
+fn set_box(pair: &mut Pair, s: usize, bx: Aabb) {
     // Beyond the f32 range a bound saturates outward, so the box stays conservative.
     for k in 0..3 {
-        pairs[p].lo[k][s] = (bx.0[k] as f32).min(f32::MAX);
-        pairs[p].hi[k][s] = (bx.1[k] as f32).max(f32::MIN);
+        pair.lo[k][s] = (bx.0[k] as f32).min(f32::MAX);
+        pair.hi[k][s] = (bx.1[k] as f32).max(f32::MIN);
     }
-    bx
 }
 
 fn widest_axis(items: &[Item]) -> usize {
@@ -707,6 +762,42 @@ mod tests {
         let f = mesh.1[1234].map(|v| mesh.0[v as usize]);
         assert_eq!(bvh.triangle(1234), Some(f));
         assert_eq!(bvh.triangle(2000), None);
+    }
+
+    #[test]
+    fn a_hint_changes_the_work_not_the_answer() {
+        let mesh = bumpy();
+        let bvh = Bvh::new(&mesh.0, &mesh.1);
+        let mut rng = Rng(5);
+        for i in 0..500u32 {
+            let q = rng.point(-150.0, 150.0);
+            let plain = bvh.closest_point(q).unwrap();
+            // A far hint, the answer itself, a neighbour of it and one out of range.
+            for hint in [(i * 7) % 2000, plain.triangle, plain.triangle ^ 1, 5000] {
+                assert_eq!(bvh.closest_point_near(q, hint), Some(plain), "query {q:?} hint {hint}");
+            }
+        }
+        assert_eq!(Bvh::new(&[], &[]).closest_point_near([0.0; 3], 0), None);
+    }
+
+    #[test]
+    fn a_refitted_hierarchy_answers_as_a_new_one() {
+        let (pos, faces) = bumpy();
+        let old = Bvh::new(&pos, &faces);
+        let mut rng = Rng(9);
+        let moved: Vec<[f64; 3]> = pos.iter().map(|&p| add(p, rng.point(-4.0, 4.0))).collect();
+        let (refitted, fresh) = (old.refitted(&moved, &faces), Bvh::new(&moved, &faces));
+        for _ in 0..500 {
+            let q = rng.point(-150.0, 150.0);
+            assert_eq!(refitted.closest_point(q), fresh.closest_point(q), "query {q:?}");
+            let d = normalize_dir(rng.point(-1.0, 1.0));
+            assert_eq!(refitted.intersect_line(q, d, 1e3), fresh.intersect_line(q, d, 1e3));
+        }
+        assert_eq!(refitted.triangle(77), fresh.triangle(77));
+    }
+
+    fn normalize_dir(d: [f64; 3]) -> [f64; 3] {
+        scale(d, 1.0 / dot(d, d).sqrt().max(1e-9))
     }
 
     #[test]

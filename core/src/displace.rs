@@ -299,13 +299,24 @@ pub fn refine_normal_fit(
     let initial = face_normals(sub_positions, sub_faces);
     let samples = if params.reverse > 0.0 { target_samples(target) } else { Vec::new() };
     let mut weight = params.smoothing;
+    // Each round's closest triangles seed the next round's searches, and the fitted
+    // surface's hierarchy is refitted rather than rebuilt: the answers stay those of plain
+    // queries (see `Bvh::closest_point_near`), at a fraction of the cost.
+    let mut input_hints = vec![u32::MAX; s.len()];
+    let mut surface_hints = vec![u32::MAX; samples.len()];
+    let mut surface: Option<Bvh> = None;
     for round in 0..params.rounds {
         let moved = deformed(sub_positions, frames, &s);
-        let steps = projection_steps(&moved, sub_faces, frames, target);
+        let steps = projection_steps(&moved, sub_faces, frames, target, &mut input_hints);
         s.iter_mut().zip(&steps).for_each(|(s, t)| *s += t);
         if params.reverse > 0.0 {
             let moved = deformed(sub_positions, frames, &s);
-            let pulls = reverse_pulls(&moved, sub_faces, frames, &samples);
+            let bvh = match surface.take() {
+                Some(b) => b.refitted(&moved, sub_faces),
+                None => Bvh::new(&moved, sub_faces),
+            };
+            let pulls = reverse_pulls(&bvh, sub_faces, frames, &samples, &mut surface_hints);
+            surface = Some(bvh);
             for (s, p) in s.iter_mut().zip(&pulls) {
                 if let Some(p) = p {
                     *s += params.reverse * p;
@@ -344,14 +355,18 @@ fn face_normals(pos: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3]> {
 /// Per vertex, the offset along its frame normal to the tangent plane of the input at the
 /// point closest to `moved[i]` (the plane's normal is the deformed mesh's vertex normal, a
 /// smoother estimate than the input triangle's); the plain projection of the closest point
-/// where that plane is too steep to the line.
-fn projection_steps(moved: &[[f64; 3]], faces: &[[u32; 3]], frames: &[Frame], target: &Bvh) -> Vec<f64> {
+/// where that plane is too steep to the line. `hints` (one per vertex) seed the closest-point
+/// searches and are replaced by this round's closest triangles.
+fn projection_steps(moved: &[[f64; 3]], faces: &[[u32; 3]], frames: &[Frame], target: &Bvh, hints: &mut [u32]) -> Vec<f64> {
     let normals = vertex_normals(moved, faces);
-    (0..moved.len())
-        .into_par_iter()
-        .map(|i| {
+    hints
+        .par_iter_mut()
+        .enumerate()
+        .map(|(i, hint)| {
             let (p, n) = (moved[i], frames[i][0]);
-            let d = sub(closest_to(target, p).point, p);
+            let c = target.closest_point_near(p, *hint).unwrap_or(SurfacePoint { point: p, triangle: *hint, dist2: 0.0 });
+            *hint = c.triangle;
+            let d = sub(c.point, p);
             let m = if normals[i] == [0.0; 3] { n } else { normals[i] };
             let den = dot(n, m);
             if den > 0.5 { dot(d, m) / den } else { dot(d, n) }
@@ -386,18 +401,21 @@ fn target_samples(target: &Bvh) -> Vec<[f64; 3]> {
 /// samples nearest to its faces, weighted by the barycentric weight of the vertex at the
 /// foot of each gap; `None` for vertices no sample is nearest to. Samples the surface
 /// reaches weigh in with a zero gap, so a vertex moves only as far as the samples it
-/// carries agree. Summed in sample order: deterministic.
-fn reverse_pulls(moved: &[[f64; 3]], faces: &[[u32; 3]], frames: &[Frame], samples: &[[f64; 3]]) -> Vec<Option<f64>> {
-    let surface = Bvh::new(moved, faces);
+/// carries agree. Summed in sample order: deterministic. `surface` indexes the fitted mesh
+/// (`faces` at the moved positions); `hints` (one per sample) seed the searches and are
+/// replaced by this round's nearest faces.
+fn reverse_pulls(surface: &Bvh, faces: &[[u32; 3]], frames: &[Frame], samples: &[[f64; 3]], hints: &mut [u32]) -> Vec<Option<f64>> {
     let feet: Vec<Option<(u32, [f64; 3], [f64; 3])>> = samples
         .par_iter()
-        .map(|&q| {
-            let c = surface.closest_point(q)?;
+        .zip(hints.par_iter_mut())
+        .map(|(&q, hint)| {
+            let c = surface.closest_point_near(q, *hint)?;
+            *hint = c.triangle;
             let tri = surface.triangle(c.triangle)?;
             Some((c.triangle, sub(q, c.point), closest_on_triangle(c.point, tri).2))
         })
         .collect();
-    let mut acc = vec![(0.0f64, 0.0f64); moved.len()];
+    let mut acc = vec![(0.0f64, 0.0f64); frames.len()];
     for (t, gap, w) in feet.into_iter().flatten() {
         for (k, &v) in faces[t as usize].iter().enumerate() {
             let a = &mut acc[v as usize];
