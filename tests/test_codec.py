@@ -71,7 +71,7 @@ def test_constant_topology_is_predicted_within_the_intra_period(sequence):
     assert len(result.data) < len(all_intra)
 
 
-@pytest.mark.parametrize("inter", ["none", "nns", "nns+me", "nns+me+qem"])
+@pytest.mark.parametrize("inter", ["none", "nns", "nns+me", "nns+me+qem", "nns+me+proj"])
 def test_changing_topology_is_predicted_only_through_an_anchor(inter):
     frames = [uv_sphere(16, 24), uv_sphere(18, 22, center=(0.02, 0, 0)), uv_sphere(17, 26, center=(0.04, 0, 0))]
     result = dynmesh.encode_frames(frames, keep_reconstructions=True, qp=22, inter=inter, rd_slope=100)

@@ -16,7 +16,7 @@ use pyo3::types::{PyBytes, PyDict};
 
 use dynmesh::bitstream::{FrameType, SequenceHeader};
 use dynmesh::decoder;
-use dynmesh::encoder::{EncoderConfig, FrameStats, InterMode, SequenceEncoder};
+use dynmesh::encoder::{EncoderConfig, FrameStats, InterMode, LiftingChoice, SequenceEncoder};
 use dynmesh::error::DecodeError as CoreDecodeError;
 use dynmesh::mesh::Mesh;
 use dynmesh::metrics;
@@ -138,6 +138,13 @@ fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
             }
             "rd_slope" => c.rd_slope_db = value.extract()?,
             "refit" => c.refit = value.extract()?,
+            "fold_repair" => c.fold_repair = value.extract()?,
+            "lifting" => {
+                let name: String = value.extract()?;
+                c.lifting = LiftingChoice::from_name(&name).ok_or_else(|| {
+                    PyValueError::new_err(format!("unknown lifting {name:?} (one of {})", LiftingChoice::NAMES.join(", ")))
+                })?
+            }
             "aq" => aq_on = value.extract()?,
             "aq_alpha" => aq.alpha = value.extract()?,
             "aq_delta" => aq.delta = value.extract()?,
@@ -294,6 +301,8 @@ fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("inter", c.inter.name())?;
     d.set_item("rd_slope", c.rd_slope_db)?;
     d.set_item("refit", c.refit)?;
+    d.set_item("fold_repair", c.fold_repair)?;
+    d.set_item("lifting", c.lifting.name())?;
     let aq = c.aq.unwrap_or_default();
     d.set_item("aq", c.aq.is_some())?;
     d.set_item("aq_alpha", aq.alpha)?;

@@ -9,10 +9,11 @@ use crate::error::DecodeError;
 use crate::grid::{Grid, BITS_RANGE};
 use crate::quantize::AqParams;
 use crate::subdivide::Scheme;
+use crate::transform::Lifting;
 
 pub const MAGIC: &[u8; 4] = b"DMSH";
 /// Version 2: one subdivision scheme per iteration (version 1 had one for all).
-pub const VERSION: u8 = 2;
+pub const VERSION: u8 = 3;
 /// Size of the fixed part of a frame unit: type, payload length, CRC.
 pub const UNIT_OVERHEAD: usize = 1 + 4 + 4;
 /// Subdivision iterations the format allows (each multiplies the face count by four).
@@ -28,6 +29,8 @@ pub struct SequenceHeader {
     pub base_bits: u32,
     /// The scheme of each subdivision iteration, coarsest first.
     pub schemes: Vec<Scheme>,
+    /// The lifting transform's update weights, one per subdivision iteration.
+    pub lifting: Lifting,
     /// 1: only the normal component of each displacement is coded; 3: all of (n, t, b).
     pub components: u8,
     /// Adaptive displacement quantization, if on.
@@ -165,6 +168,11 @@ pub fn write_header(h: &SequenceHeader) -> Vec<u8> {
     for &s in &h.schemes {
         w.u8(s as u8);
     }
+    w.u8(h.lifting.per_valence as u8);
+    for &(num, den) in &h.lifting.update {
+        w.u8(num);
+        w.u8(den);
+    }
     w.u8(h.components);
     let aq = h.aq.unwrap_or_default();
     w.u8(h.aq.is_some() as u8);
@@ -197,6 +205,10 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
     }
     let schemes_at = data.len() - r.remaining();
     let scheme_codes = r.bytes(subdiv_iterations as usize, "subdivision schemes")?;
+    let lifting_at = data.len() - r.remaining();
+    let per_valence = r.u8("lifting valence flag")?;
+    let weights = r.bytes(2 * subdiv_iterations as usize, "lifting update weights")?;
+    let lifting = Lifting { update: weights.chunks(2).map(|w| (w[0], w[1])).collect(), per_valence: per_valence == 1 };
     let components = r.u8("displacement components")?;
     let aq_flag = r.u8("adaptive quantization flag")?;
     let aq = AqParams { alpha: r.f64("AQ alpha")?, delta: r.f64("AQ delta")?, h: r.f64("AQ h")? };
@@ -214,16 +226,20 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
             s => Err(DecodeError::new(None, (schemes_at + i) as u64, format!("unknown subdivision scheme {s}"))),
         })
         .collect::<Result<Vec<_>, _>>()?;
+    if per_valence > 1 || lifting.update.iter().any(|&(_, den)| den == 0) {
+        return Err(DecodeError::new(None, lifting_at as u64, "invalid lifting update weights"));
+    }
     let header = SequenceHeader {
         frame_count,
         grid: Grid { origin, step, bits },
         base_bits,
         schemes,
+        lifting,
         components,
         aq: (aq_flag == 1).then_some(aq),
     };
     if aq_flag > 1 || (aq_flag == 1 && !aq.is_valid()) {
-        return Err(DecodeError::new(None, (schemes_at + header.schemes.len() + 1) as u64, "invalid adaptive quantization parameters"));
+        return Err(DecodeError::new(None, (lifting_at + 1 + 2 * header.schemes.len() + 1) as u64, "invalid adaptive quantization parameters"));
     }
     validate_header(&header).map_err(|e| DecodeError::new(None, 4, e))?;
     Ok((header, end + 4))
@@ -320,6 +336,7 @@ mod tests {
             grid: Grid { origin: [1.0, -2.0, 0.5], step: 0.01, bits: 12 },
             base_bits: 10,
             schemes: vec![Scheme::Midpoint, Scheme::Midpoint, Scheme::Loop],
+            lifting: Lifting::per_valence(3),
             components: 1,
             aq: Some(AqParams { alpha: 1.25, delta: 0.25, h: 6.0 }),
         }

@@ -292,7 +292,7 @@ pub fn reconstruct(h: &SequenceHeader, sub: &Subdivision, frames: &[[[f64; 3]; 3
         .enumerate()
         .map(|(v, &s)| std::array::from_fn(|k| if k < comps { quantize::dequantize_shifted(q[v * comps + k], s, offset) } else { 0.0 }))
         .collect();
-    transform::inverse(&mut local, sub);
+    transform::inverse(&mut local, sub, &h.lifting);
     let world = displace::to_world(&local, frames);
     let positions = sub.positions.iter().zip(&world).map(|(p, d)| to_world(&h.grid, *p, *d)).collect();
     Mesh::new(positions, sub.faces.clone())

@@ -35,15 +35,17 @@ pub enum InterMode {
     Nns,
     /// ... with motion estimation before the matching.
     NnsMe,
-    /// ... and refinement of the matches (the full method; see `anchor` for which refinement).
+    /// ... and the paper's QEM refinement of the matches (the paper's full method).
     NnsMeQem,
+    /// ... with our projection of the motion-predicted points instead of the QEM stage.
+    NnsMeProj,
 }
 
 impl InterMode {
-    pub const NAMES: [&'static str; 4] = ["none", "nns", "nns+me", "nns+me+qem"];
+    pub const NAMES: [&'static str; 5] = ["none", "nns", "nns+me", "nns+me+qem", "nns+me+proj"];
 
     pub fn from_name(name: &str) -> Option<Self> {
-        let modes = [Self::None, Self::Nns, Self::NnsMe, Self::NnsMeQem];
+        let modes = [Self::None, Self::Nns, Self::NnsMe, Self::NnsMeQem, Self::NnsMeProj];
         Self::NAMES.iter().position(|&n| n == name).map(|i| modes[i])
     }
 
@@ -57,6 +59,36 @@ impl InterMode {
             Self::Nns => Some(AnchorStages::Nns),
             Self::NnsMe => Some(AnchorStages::NnsMe),
             Self::NnsMeQem => Some(AnchorStages::NnsMeQem),
+            Self::NnsMeProj => Some(AnchorStages::NnsMeProj),
+        }
+    }
+}
+
+/// The lifting transform's update step (see `transform::Lifting`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LiftingChoice {
+    /// The MPEG test model's level-dependent weights divided by each parent's valence.
+    PerValence,
+    /// 1/8 of each residual to each parent at every level.
+    Constant,
+}
+
+impl LiftingChoice {
+    pub const NAMES: [&'static str; 2] = ["valence", "constant"];
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        let choices = [Self::PerValence, Self::Constant];
+        Self::NAMES.iter().position(|&n| n == name).map(|i| choices[i])
+    }
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
+
+    fn weights(self, iterations: usize) -> transform::Lifting {
+        match self {
+            Self::PerValence => transform::Lifting::per_valence(iterations),
+            Self::Constant => transform::Lifting::constant(iterations),
         }
     }
 }
@@ -91,6 +123,11 @@ pub struct EncoderConfig {
     pub rd_slope_db: f64,
     /// Refit the base mesh so that its subdivision fits the input, before it is quantized.
     pub refit: bool,
+    /// The lifting transform's update weights.
+    pub lifting: LiftingChoice,
+    /// Repair folded anchor triangles before their motion is coded (`anchor::folds`; not a
+    /// stage of the paper).
+    pub fold_repair: bool,
 }
 
 impl Default for EncoderConfig {
@@ -104,10 +141,12 @@ impl Default for EncoderConfig {
             base_bits: 9,
             normal_only: true,
             intra_period: 32,
-            inter: InterMode::NnsMeQem,
+            inter: InterMode::NnsMeProj,
             aq: Some(AqParams::default()),
             rd_slope_db: 4.0,
             refit: true,
+            lifting: LiftingChoice::PerValence,
+            fold_repair: true,
         }
     }
 }
@@ -158,6 +197,7 @@ impl EncoderConfig {
             grid: Grid::over_box(min, max, self.bits),
             base_bits: self.base_bits,
             schemes: self.scheme.schemes(self.subdiv_iterations).expect("validated configuration"),
+            lifting: self.lifting.weights(self.subdiv_iterations as usize),
             components: if self.normal_only { 1 } else { 3 },
             aq: self.aq,
         }
@@ -270,7 +310,7 @@ impl SequenceEncoder {
         let same_topology = self.reference.as_ref().is_some_and(|r| tracking::same_connectivity(&r.input, &input));
         let may_predict = self.frame % cfg.intra_period != 0 && self.reference.is_some();
         let anchor_start = Instant::now();
-        let (anchor, bindings) = may_predict.then(|| self.anchor_positions(&input, same_topology)).flatten().unzip();
+        let (anchor, bindings) = may_predict.then(|| self.anchor_positions(&input, &target, same_topology)).flatten().unzip();
         let anchor_seconds = anchor_start.elapsed().as_secs_f64();
         let predicted = anchor.map(|a| self.predicted(&a, &input, &target)).transpose()?;
         let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
@@ -299,7 +339,7 @@ impl SequenceEncoder {
     /// The current frame's base mesh positions (base grid units) with the reference base
     /// mesh's connectivity, if this frame may be predicted; with constant topology also the
     /// bindings that tracked them, which the next frame reuses if this one is predicted.
-    fn anchor_positions(&self, input: &Mesh, same_topology: bool) -> Option<(Vec<[u32; 3]>, Option<Bindings>)> {
+    fn anchor_positions(&self, input: &Mesh, target: &Bvh, same_topology: bool) -> Option<(Vec<[u32; 3]>, Option<Bindings>)> {
         let r = self.reference.as_ref()?;
         let base_grid = self.header.grid.coarser(self.header.base_bits);
         let reference = Mesh::new(decoder::base_in_grid_units(&self.header, &r.base), r.faces.clone());
@@ -308,7 +348,8 @@ impl SequenceEncoder {
             (tracking::bound_positions(&bindings, input, &reference.positions), Some(bindings))
         } else {
             let stages = self.config.inter.anchor_stages()?;
-            (anchor::anchor_mesh(&reference, input, &AnchorParams { stages }).positions, None)
+            let params = AnchorParams { stages, repair_folds: self.config.fold_repair };
+            (anchor::anchor_mesh(&reference, input, target, &params).positions, None)
         };
         Some((moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect(), bindings))
     }
@@ -482,7 +523,7 @@ fn differences_from(steps: &[f64], reference: &[i32]) -> Vec<i32> {
 fn coefficient_steps(h: &SequenceHeader, qp: i32, sub: &Subdivision, local: &[[f64; 3]]) -> Vec<f64> {
     let comps = h.components as usize;
     let mut signal = local.to_vec();
-    transform::forward(&mut signal, sub);
+    transform::forward(&mut signal, sub, &h.lifting);
     let scales = decoder::vertex_scales(h, qp, sub);
     let offset = h.aq.map_or(0.0, |a| a.delta);
     let mut x = Vec::with_capacity(signal.len() * comps);

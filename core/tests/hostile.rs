@@ -123,7 +123,8 @@ fn a_header_asking_for_more_subdivision_than_the_frame_justifies_is_refused() {
     let mut s = stream_of(&cfg, &[ball_of(4)]);
     let (h, start) = bitstream::read_header(&s).unwrap();
     let schemes = vec![dynmesh::subdivide::Scheme::Midpoint; bitstream::MAX_SUBDIV as usize];
-    let header = bitstream::write_header(&bitstream::SequenceHeader { schemes, ..h });
+    let lifting = dynmesh::transform::Lifting::per_valence(schemes.len());
+    let header = bitstream::write_header(&bitstream::SequenceHeader { schemes, lifting, ..h });
     s.splice(..start, header);
     let e = decode_all(&s).unwrap_err();
     assert_eq!(e.frame, Some(0));

@@ -45,7 +45,7 @@ def _table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
 def _encoder_options(a) -> dict:
     return dict(qp=a.qp, base_ratio=a.base_ratio, subdiv=a.subdiv, scheme=a.scheme, bits=a.bits,
                 base_bits=a.base_bits, normal_only=not a.all_components, intra_period=a.intra_period,
-                inter=a.inter, rd_slope=a.rd_slope, refit=a.refit, aq=a.aq, aq_alpha=a.aq_alpha,
+                inter=a.inter, rd_slope=a.rd_slope, refit=a.refit, lifting=a.lifting, fold_repair=a.fold_repair, aq=a.aq, aq_alpha=a.aq_alpha,
                 aq_delta=a.aq_delta, aq_h=a.aq_h, texture="auto" if a.texture is None else a.texture,
                 texture_size=a.texture_size, texture_qp=a.texture_qp, texture_codec=a.texture_codec)
 
@@ -251,16 +251,24 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--all-components", action="store_true", help="code all three displacement components, not only the normal one")
     p.add_argument("--intra-period", type=int, default=d["intra_period"],
                    help=f"frames per group; each group starts with an intra frame, 1 = all intra (default {d['intra_period']})")
-    p.add_argument("--inter", choices=["none", "nns", "nns+me", "nns+me+qem"], default=d["inter"],
-                   help="how predicted frames get their base mesh when the topology changes: none = never (intra), "
-                        "nns = nearest-neighbour anchor, +me = with motion estimation, +qem = with refinement onto the surface "
+    p.add_argument("--inter", choices=["none", "nns", "nns+me", "nns+me+qem", "nns+me+proj"], default=d["inter"],
+                   help="how predicted frames get their base mesh when the topology changes: none = never (intra); "
+                        "the paper's stages: nns = nearest input vertex of each reference base vertex, "
+                        "+me = searched from where the neighbours' motion predicts, "
+                        "+qem = refined by the QEM edge collapse around each match; "
+                        "nns+me+proj = ours: the predicted points projected onto the input surface instead "
                         f"(default {d['inter']})")
+    p.add_argument("--fold-repair", action=argparse.BooleanOptionalAction, default=d["fold_repair"],
+                   help="repair flipped or degenerate anchor triangles before coding (not in the paper; default: %(default)s)")
     p.add_argument("--rd-slope", type=float, default=d["rd_slope"],
                    help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
                         f"intra (default {d['rd_slope']:g})")
     p.add_argument("--refit", action=argparse.BooleanOptionalAction, default=d["refit"],
                    help="least-squares refit of each intra base mesh so that its subdivision fits the input, "
                         "before quantization (default: %(default)s)")
+    p.add_argument("--lifting", choices=["valence", "constant"], default=d["lifting"],
+                   help="update weights of the lifting transform: valence = the test model's per-level weights "
+                        "divided by each parent's valence, constant = 1/8 at every level (default %(default)s)")
     p.add_argument("--aq", action=argparse.BooleanOptionalAction, default=d["aq"],
                    help="adaptive displacement quantization by vertex valence (default: %(default)s)")
     p.add_argument("--aq-alpha", type=float, default=d["aq_alpha"], help=f"AQ step factor alpha (default {d['aq_alpha']:g})")
