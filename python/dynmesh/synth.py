@@ -34,18 +34,23 @@ _CASE_EDGES = {
 }
 
 
-def synth_sequence(frames: int = 8, resolution: int = 48, seed: int = 0) -> list[Mesh]:
+def synth_sequence(frames: int = 8, resolution: int = 48, seed: int = 0, cycle: float = 1.0) -> list[Mesh]:
     """``frames`` closed, consistently outward-oriented triangle meshes of merging blobs.
 
     Every frame is watertight (each edge shared by exactly two triangles) and lies in
-    [-1, 1]^3; vertex count and connectivity change every frame, and two blobs merge
-    into one and split again over the sequence. ``resolution`` is the number of grid
-    cells per axis; the result is a deterministic function of all three arguments.
+    [-1, 1]^3; vertex count and connectivity change every frame. The frames cover the
+    first ``cycle`` (in (0, 1]) of the blobs' motion, over which the whole sequence
+    (``cycle`` 1) has two blobs merge into one and split again; a smaller share moves
+    less from frame to frame, as a capture at a higher frame rate does. ``resolution`` is
+    the number of grid cells per axis; the result is a deterministic function of the
+    arguments.
     """
     if frames < 1 or resolution < 4:
         raise ValueError("need frames >= 1 and resolution >= 4")
+    if not 0.0 < cycle <= 1.0:
+        raise ValueError(f"cycle must be in (0, 1], got {cycle}")
     params = _path_parameters(np.random.default_rng(seed))
-    times = np.linspace(0.0, 1.0, frames) if frames > 1 else np.zeros(1)
+    times = np.linspace(0.0, cycle, frames) if frames > 1 else np.zeros(1)
     axis = np.linspace(-1.0, 1.0, resolution + 1)
     return [polygonize(_field(axis, *_blobs(t, params)), axis) for t in times]
 
