@@ -27,6 +27,7 @@ pub mod transform;
 pub mod quantize;
 pub mod coefcoder;
 pub mod bitstream;
+pub mod resync;
 pub mod encoder;
 pub mod decoder;
 pub mod metrics;
