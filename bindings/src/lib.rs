@@ -195,9 +195,18 @@ struct Decoder {
 
 #[pymethods]
 impl Decoder {
+    /// `tolerant`: open a stream with damaged frame units (only the header must be intact);
+    /// `damage()` lists them and decoding a frame that depends on one fails.
     #[new]
-    fn new(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { inner: decoder::Decoder::new(data.to_vec()).map_err(decode_error)? })
+    #[pyo3(signature = (data, tolerant=false))]
+    fn new(data: &[u8], tolerant: bool) -> PyResult<Self> {
+        let open = if tolerant { decoder::Decoder::new_tolerant } else { decoder::Decoder::new };
+        Ok(Self { inner: open(data.to_vec()).map_err(decode_error)? })
+    }
+
+    /// The damaged frame units: [(frame, start offset, end offset, reason)].
+    fn damage(&self) -> Vec<(u32, u64, u64, String)> {
+        self.inner.damage().into_iter().map(|(f, d)| (f, d.start, d.end, d.reason.clone())).collect()
     }
 
     #[getter]

@@ -150,9 +150,9 @@ def encode(frames: Iterable, **options) -> bytes:
     return encode_frames(frames, **options).data
 
 
-def _open(data: bytes) -> _core.Decoder:
+def _open(data: bytes, tolerant: bool = False) -> _core.Decoder:
     try:
-        return _core.Decoder(bytes(data))
+        return _core.Decoder(bytes(data), tolerant)
     except _core.DecodeError as e:
         raise DecodeError(*e.args) from None
 
@@ -160,35 +160,69 @@ def _open(data: bytes) -> _core.Decoder:
 def decode(data: bytes) -> Iterator[Mesh]:
     """Yields the decoded frames of a stream, in order; frames of a textured stream carry
     their UVs and texture image. Raises DecodeError."""
-    dec = _open(data)
-    tex = _texture.TextureDecoder(dec, int(dec.header()["subdiv_iterations"]))
+    for _, mesh in _decode_frames(_open(data), tolerant=False):
+        if isinstance(mesh, DecodeError):
+            raise mesh
+        yield mesh
+
+
+def decode_each(data: bytes) -> Iterator[tuple[int, Mesh | DecodeError]]:
+    """Yields ``(index, Mesh)`` for every frame of a possibly damaged stream whose reference
+    chain (and texture unit) is intact, and ``(index, DecodeError)`` for the others, in
+    order. Only the sequence header must be intact (else DecodeError is raised)."""
+    return _decode_frames(_open(data, tolerant=True), tolerant=True)
+
+
+def _decode_frames(dec: _core.Decoder, tolerant: bool) -> Iterator[tuple[int, Mesh | DecodeError]]:
+    tex = _texture.TextureDecoder(dec, int(dec.header()["subdiv_iterations"]), tolerant)
     textured = tex.textured()
     for i in range(dec.frame_count):
         try:
             pos, faces = dec.decode_frame(i)
         except _core.DecodeError as e:
-            raise DecodeError(*e.args) from None
+            yield i, DecodeError(*e.args)
+            continue
         mesh = Mesh(pos, faces)
         if textured:
             try:
                 mesh.uvs, mesh.uv_faces, mesh.image = tex.texture_of(i)
             except ValueError as e:
-                raise DecodeError(str(e), i, 0) from None
-        yield mesh
+                yield i, DecodeError(str(e), i, 0)
+                continue
+        yield i, mesh
+
+
+def damage(data: bytes) -> list[dict]:
+    """The damaged frame units of a stream: ``frame``, ``offset`` and ``end`` (bytes of the
+    damaged stretch) and ``reason``; empty for an intact stream. Raises DecodeError when the
+    sequence header itself is damaged."""
+    dec = _open(data, tolerant=True)
+    return [{"frame": f, "offset": start, "end": end, "reason": reason} for f, start, end, reason in dec.damage()]
 
 
 def info(data: bytes) -> dict:
     """Sequence header and per-frame sizes of a stream (``texture_bytes``: the frame's
-    texture unit, which an intra frame of a textured stream carries for its group)."""
-    dec = _open(data)
-    try:
-        frames = [dec.frame_info(i) for i in range(dec.frame_count)]
-        for i, f in enumerate(frames):
+    texture unit, which an intra frame of a textured stream carries for its group).
+
+    A stream with damaged frame units still gets its header and intact frames; ``damaged``
+    lists the others (as :func:`damage` does) and their frame entries have ``type`` "?" and
+    ``damaged`` True. Raises DecodeError when the sequence header is unreadable."""
+    dec = _open(data, tolerant=True)
+    damaged = [{"frame": f, "offset": start, "end": end, "reason": reason} for f, start, end, reason in dec.damage()]
+    lost = {d["frame"]: d for d in damaged}
+    frames = []
+    for i in range(dec.frame_count):
+        if i in lost:
+            frames.append({"type": "?", "reference": None, "bytes": 0, "qp": 0, "base_bytes": 0,
+                           "displacement_bytes": 0, "texture_bytes": 0, "damaged": True})
+            continue
+        try:
+            f = dec.frame_info(i)
             t = dec.texture_payload(i)
-            f["texture_bytes"] = 0 if t is None else len(t[0])
-    except _core.DecodeError as e:
-        raise DecodeError(*e.args) from None
-    return {"bytes": len(data), "header": dec.header(), "frames": frames}
+        except _core.DecodeError as e:
+            raise DecodeError(*e.args) from None
+        frames.append({**f, "texture_bytes": 0 if t is None else len(t[0]), "damaged": False})
+    return {"bytes": len(data), "header": dec.header(), "frames": frames, "damaged": damaged}
 
 
 def _has_texture(m: Mesh) -> bool:
