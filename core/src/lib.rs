@@ -35,3 +35,4 @@ pub mod texture;
 pub mod uvcoder;
 pub mod render;
 pub mod transfer;
+pub mod fuzzing;
