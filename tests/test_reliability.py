@@ -189,3 +189,53 @@ def test_crc_check_of_the_test_helper_matches_the_format(predicted_stream):
     for s in unit_starts(data):
         n = struct.unpack_from("<I", data, s + 1)[0]
         assert struct.unpack_from("<I", data, s + 5 + n)[0] == zlib.crc32(data[s : s + 5 + n])
+
+
+# --------------------------------------------------------------------------- bounded work
+
+
+def write_obj(path, positions, faces):
+    with open(path, "w") as f:
+        f.write("".join(f"v {float(x)!r} {float(y)!r} {float(z)!r}\n" for x, y, z in positions))
+        f.write("".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in faces))
+
+
+def test_encoding_a_million_vertices_on_one_point_answers_at_once(tmp_path):
+    path = tmp_path / "point.obj"
+    with open(path, "w") as f:
+        f.write("v 0.5 0.5 0.5\n" * 1_000_000)
+        f.write("".join(f"f {3 * i + 1} {3 * i + 2} {3 * i + 3}\n" for i in range(333_333)))
+    p = subprocess.run([sys.executable, "-m", "dynmesh", "encode", path, "-o", tmp_path / "p.dmsh"],
+                       capture_output=True, text=True, timeout=60)
+    assert_clean_failure(p, "degenerate")
+    assert not (tmp_path / "p.dmsh").exists()
+
+
+def test_a_triangle_soup_and_a_dense_fan_are_refused(tmp_path):
+    rng = np.random.default_rng(1)
+    write_obj(tmp_path / "soup.obj", rng.random((30_000, 3)) * 1e-9, np.arange(30_000).reshape(-1, 3))
+    n = 20_000
+    fan = np.stack([np.zeros(n - 2, int), np.arange(1, n - 1), np.arange(2, n)], 1)
+    write_obj(tmp_path / "fan.obj", np.c_[rng.random(n), np.zeros((n, 2))], fan)
+    for name, words in (("soup", "pieces"), ("fan", "share a few vertices")):
+        p = subprocess.run([sys.executable, "-m", "dynmesh", "encode", tmp_path / f"{name}.obj", "-o", tmp_path / "x.dmsh"],
+                           capture_output=True, text=True, timeout=60)
+        assert_clean_failure(p, words)
+
+
+def test_metrics_never_report_a_non_number(tmp_path, frames_dir):
+    write_obj(tmp_path / "flat.obj", [(0, 0, 0), (1, 0, 0), (2, 0, 0)], [(0, 1, 2), (0, 2, 1)])
+    assert_clean_failure(run("metrics", frames_dir / "f0.obj", tmp_path / "flat.obj"), "frame 0", "no surface")
+    assert_clean_failure(run("metrics", tmp_path / "flat.obj", frames_dir / "f0.obj"), "reference mesh has no surface")
+    with pytest.raises(ValueError, match="no surface"):
+        dynmesh.metrics(wobbly_sequence(1)[0], dynmesh.Mesh(np.zeros((3, 3)), np.array([[0, 1, 2]])))
+    p = run("metrics", frames_dir / "f0.obj", frames_dir / "f0.obj")
+    assert p.returncode == 0 and "identical" in p.stdout and "inf" in p.stdout
+
+
+@pytest.mark.parametrize("grid, words", [("100000000", "grid size must be"), ("-3", "grid size must be"),
+                                         ("16000", "beyond the limit")])
+def test_metric_grid_sizes_beyond_the_limits_are_refused_at_once(frames_dir, grid, words):
+    p = subprocess.run([sys.executable, "-m", "dynmesh", "metrics", frames_dir / "f0.obj", frames_dir / "f1.obj",
+                        "--grid-size", grid], capture_output=True, text=True, timeout=30)
+    assert_clean_failure(p, words)

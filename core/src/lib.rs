@@ -11,6 +11,7 @@
 pub mod error;
 pub mod mesh;
 pub mod weld;
+pub mod limits;
 pub mod ec;
 pub mod grid;
 pub mod quadric;

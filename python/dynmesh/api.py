@@ -244,23 +244,37 @@ def metrics(reference, decoded, *, peak: float | None = None, grid_size: int = 1
         raise ValueError(f"{len(refs)} reference frames but {len(decs)} decoded frames")
     lo, hi = sequence_bounds(refs)
     peak = float(np.max(hi - lo)) if peak is None else float(peak)
-    if not peak > 0:
-        raise ValueError("peak must be positive")
+    if not (peak > 0 and np.isfinite(peak)):
+        raise ValueError(f"peak must be a positive finite number, not {peak}")
+    if not (isinstance(grid_size, (int, np.integer)) and 2 <= grid_size <= MAX_GRID_SIZE):
+        raise ValueError(f"grid size must be an integer in 2..{MAX_GRID_SIZE}, not {grid_size}")
     textured = all(_has_texture(m) for m in refs + decs)
     frames = []
-    for r, d in zip(refs, decs):
-        if textured:
-            frames.append(dict(_core.textured_distortion(
-                r.positions, r.faces, r.uvs, _uv_faces(r), _image_of(r),
-                d.positions, d.faces, d.uvs, _uv_faces(d), _image_of(d),
-                lo.tolist(), hi.tolist(), peak, grid_size)))
-        else:
-            d1, d2, p1, p2 = _core.mesh_distortion(r.positions, r.faces, d.positions, d.faces,
-                                                   lo.tolist(), hi.tolist(), peak, grid_size)
-            frames.append({"d1_mse": d1, "d2_mse": d2, "d1_psnr": p1, "d2_psnr": p2})
+    for i, (r, d) in enumerate(zip(refs, decs)):
+        try:
+            frames.append(_frame_metrics(r, d, textured, lo, hi, peak, grid_size))
+        except ValueError as e:
+            raise ValueError(f"frame {i}: {e}") from None
     keys = ("d1_psnr", "d2_psnr") + (("y_psnr", "cb_psnr", "cr_psnr") if textured else ())
     mean = {k: float(np.mean([f[k] for f in frames])) for k in keys}
     return {"peak": peak, "frames": frames, **mean}
+
+
+#: Largest metric grid size (the test conditions use 1024); the core also bounds the number
+#: of samples a comparison may make, whatever the grid.
+MAX_GRID_SIZE = 16384
+
+
+def _frame_metrics(r: Mesh, d: Mesh, textured: bool, lo, hi, peak: float, grid_size: int) -> dict:
+    """One frame's figures; ValueError when there is nothing to measure or too much to sample."""
+    if textured:
+        return dict(_core.textured_distortion(
+            r.positions, r.faces, r.uvs, _uv_faces(r), _image_of(r),
+            d.positions, d.faces, d.uvs, _uv_faces(d), _image_of(d),
+            lo.tolist(), hi.tolist(), peak, grid_size))
+    d1, d2, p1, p2 = _core.mesh_distortion(r.positions, r.faces, d.positions, d.faces,
+                                           lo.tolist(), hi.tolist(), peak, grid_size)
+    return {"d1_mse": d1, "d2_mse": d2, "d1_psnr": p1, "d2_psnr": p2}
 
 
 def _uv_faces(m: Mesh) -> np.ndarray:

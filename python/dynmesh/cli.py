@@ -139,7 +139,9 @@ def cmd_metrics(a) -> dict:
         print(_table(rows, [("frame", "frame", "d"), ("d1_psnr", "D1 PSNR", ".3f"), ("d2_psnr", "D2 PSNR", ".3f")] + colour))
         of_texture = (f", Y {result['y_psnr']:.3f} dB, Cb {result['cb_psnr']:.3f} dB, Cr {result['cr_psnr']:.3f} dB"
                       if colour else "")
-        print(f"mean D1 {result['d1_psnr']:.3f} dB, D2 {result['d2_psnr']:.3f} dB{of_texture} (peak {result['peak']:.6g})")
+        identical = " (infinite: the sampled geometry is identical)" if result["d1_psnr"] == float("inf") else ""
+        print(f"mean D1 {result['d1_psnr']:.3f} dB, D2 {result['d2_psnr']:.3f} dB{of_texture} "
+              f"(peak {result['peak']:.6g}){identical}")
     return result
 
 
