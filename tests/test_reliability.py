@@ -239,3 +239,23 @@ def test_metric_grid_sizes_beyond_the_limits_are_refused_at_once(frames_dir, gri
     p = subprocess.run([sys.executable, "-m", "dynmesh", "metrics", frames_dir / "f0.obj", frames_dir / "f1.obj",
                         "--grid-size", grid], capture_output=True, text=True, timeout=30)
     assert_clean_failure(p, words)
+
+
+# --------------------------------------------------------------------------- fuzz findings
+
+
+def test_an_obj_naming_a_material_library_with_a_nul_byte_reads_with_a_warning(tmp_path):
+    # Found by fuzz/python/fuzz_readers.py obj: open() raised "embedded null byte".
+    path = tmp_path / "nul.obj"
+    path.write_bytes(b"mtllib seed_\x00\x00.mtl\nusemtl m\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.warns(dynmesh.io.MeshWarning, match="not found"):
+        m = dynmesh.read_mesh(path)
+    assert m.texture is None and len(m.faces) == 1
+
+
+def test_an_obj_naming_a_material_library_too_long_for_the_file_system_reads_with_a_warning(tmp_path):
+    # Found by fuzz/python/fuzz_readers.py obj: is_file() raised "File name too long".
+    path = tmp_path / "long.obj"
+    path.write_bytes(b"mtllib " + b"x" * 5000 + b".mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+    with pytest.warns(dynmesh.io.MeshWarning, match="not found"):
+        assert len(dynmesh.read_mesh(path).faces) == 1
