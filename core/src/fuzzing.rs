@@ -22,15 +22,18 @@ const CONTEXT_BITS: u32 = 9;
 
 /// The whole stream decoder. Bit 0 of the first byte asks for every unit's CRC to be
 /// recomputed first, so that mutations reach the payload parsers; the rest is the stream.
-/// Decodes it strictly, then tolerantly (damaged units skipped), every frame.
+/// Decodes every frame, strictly, or tolerantly (damaged units skipped) when the strict
+/// decoder refuses the stream.
 pub fn stream(input: &[u8]) {
     let Some((&flags, rest)) = input.split_first() else { return };
     let mut data = rest.to_vec();
     if flags & 1 == 1 {
         fix_crcs(&mut data);
     }
+    // A stream the strict decoder opens has no damaged unit, so the tolerant one would only
+    // repeat the same decoding: try it on the others.
     if let Ok(d) = Decoder::new(data.clone()) {
-        decode_every_frame(d);
+        return decode_every_frame(d);
     }
     if let Ok(d) = Decoder::new_tolerant(data) {
         for (frame, damage) in d.damage() {

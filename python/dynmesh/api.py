@@ -91,9 +91,14 @@ def encode_frames(
     keep_reconstructions: bool = False,
     on_frame: Callable[[int, dict], None] | None = None,
     texture: bool | str = "auto",
+    sequence: tuple[int, np.ndarray, np.ndarray] | None = None,
     **options,
 ) -> EncodeResult:
     """Encodes a sequence (Mesh objects or (positions, faces) pairs) into one stream.
+
+    ``sequence = (frame count, box min, box max)``, when the caller knows them, lets
+    ``frames`` be any iterable (a generator reading one file at a time) consumed once, so
+    that memory does not grow with the sequence: ``texture`` must then be True or False.
 
     Geometry options (see ``DEFAULTS``): qp, base_ratio, subdiv, scheme ("mixed" =
     midpoint then Loop on the last iteration, "midpoint", "loop", or a comma-separated list
@@ -114,16 +119,23 @@ def encode_frames(
     if unknown:
         raise ValueError(f"unknown encoder option(s): {', '.join(sorted(unknown))}")
     opts = {**DEFAULTS, **options}
-    meshes = [_as_mesh(f) for f in frames]
-    lo, hi = sequence_bounds(meshes)
+    if sequence is None:
+        meshes = [_as_mesh(f) for f in frames]
+        count, (lo, hi), textured = len(meshes), sequence_bounds(meshes), _textured(meshes, texture)
+    else:
+        (count, lo, hi), meshes, textured = sequence, (_as_mesh(f) for f in frames), texture
+        if textured not in (True, False):
+            raise ValueError("texture must be True or False when the sequence is given")
     try:
-        enc = _core.Encoder(len(meshes), lo.tolist(), hi.tolist(), opts)
+        enc = _core.Encoder(count, np.asarray(lo, float).tolist(), np.asarray(hi, float).tolist(), opts)
     except TypeError as e:
         raise ValueError(f"invalid encoder option: {e}") from None
-    tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions) if _textured(meshes, texture) else None
+    tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions) if textured else None
     parts = [[enc.header_bytes()]]
     result = EncodeResult(b"")
     for i, m in enumerate(meshes):
+        if i >= count:
+            raise ValueError(f"more than the {count} frames announced")
         try:
             unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
             closed = tex and tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, _image_of(m))
@@ -136,6 +148,8 @@ def encode_frames(
             result.reconstructions.append(Mesh(pos, faces))
         if on_frame is not None:
             on_frame(i, stats)
+    if len(result.frames) != count:
+        raise ValueError(f"{len(result.frames)} frames where {count} were announced")
     _place_texture_unit(parts, tex and tex.finish())
     if tex is not None and keep_reconstructions:
         for r, (uv, uv_faces), image in zip(result.reconstructions, tex.uvs, tex.images):

@@ -7,7 +7,10 @@ import json
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
+
+import numpy as np
 
 from . import api, texture, video
 from .io import MeshError, read_mesh, write_mesh
@@ -51,11 +54,48 @@ def _encoder_options(a) -> dict:
                 texture_size=a.texture_size, texture_qp=a.texture_qp, texture_codec=a.texture_codec)
 
 
+def _scan_sequence(paths: list[Path], quiet: bool) -> tuple[np.ndarray, np.ndarray, list[Path], list[bool]]:
+    """First pass over the frames, one in memory at a time: the sequence box, the texture
+    files they use, and which frames are textured."""
+    lo, hi, textures, textured = np.full(3, np.inf), np.full(3, -np.inf), [], []
+    with _progress(len(paths), "reading", quiet) as bar:
+        for i, p in enumerate(paths):
+            m = read_mesh(p)
+            try:
+                m_lo, m_hi = api.sequence_bounds([m])
+            except ValueError as e:
+                raise ValueError(f"frame {i}: {str(e).removeprefix('frame 0: ')}") from None
+            lo, hi = np.minimum(lo, m_lo), np.maximum(hi, m_hi)
+            textures += mesh_inputs([], [m])
+            textured.append(api._has_texture(m))
+            bar.update()
+    return lo, hi, textures, textured
+
+
+def _frames_again(paths: list[Path]):
+    """Second pass: the frames read again, one at a time (their warnings were shown once)."""
+    for p in paths:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mesh = read_mesh(p)
+        yield mesh
+
+
 def cmd_encode(a) -> dict:
-    paths, meshes = _read_sequence(a.input, a.start, a.count, a.quiet)
-    refuse_inputs(a.output, mesh_inputs(paths, meshes))
-    with _progress(len(meshes), "encoding", a.quiet) as bar:
-        result = api.encode_frames(meshes, on_frame=lambda i, s: bar.update(), **_encoder_options(a))
+    # Two passes over the files: the header needs the sequence box before the first frame,
+    # and holding every frame would make memory grow with the sequence.
+    paths = resolve_sequence(a.input, a.start, a.count)
+    refuse_inputs(a.output, paths)
+    lo, hi, textures, textured = _scan_sequence(paths, a.quiet)
+    refuse_inputs(a.output, textures)
+    options = _encoder_options(a)
+    texture_option = options.pop("texture")
+    if texture_option is True and not all(textured):
+        raise ValueError(f"frame {textured.index(False)}: texture coding asks for UVs and a texture image on every frame")
+    use_texture = all(textured) if texture_option == "auto" else texture_option
+    with _progress(len(paths), "encoding", a.quiet) as bar:
+        result = api.encode_frames(_frames_again(paths), on_frame=lambda i, s: bar.update(), texture=use_texture,
+                                   sequence=(len(paths), lo, hi), **options)
     api.write_bytes_atomic(a.output, result.data)
     frames = [{"frame": i, "input": str(p), **s} for i, (p, s) in enumerate(zip(paths, result.frames))]
     summary = {"output": str(a.output), "bytes": len(result.data), "texture_bytes": result.texture_bytes,
