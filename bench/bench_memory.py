@@ -6,7 +6,11 @@ them), and the decoder writes each frame as it decodes it.
 
 Peak resident set size of each process (``ru_maxrss`` from ``wait4``), Python included.
 
-    python bench/bench_memory.py [--sequence basketball_player] [--frames 10 100 300] [--write]
+    python bench/bench_memory.py [--sequence basketball_player] [--frames 10 100 300]
+                                 [--options="--subdiv 1"] [--write]
+
+``--options`` are passed to ``dynmesh encode`` (cheaper settings make the long runs shorter;
+what is measured is whether memory grows with the length).
 
 Skips (exit 0, a message on stderr) when ../shared/data is absent.
 """
@@ -47,13 +51,13 @@ def looped(source: Path, frames: int, into: Path) -> Path:
     return into
 
 
-def measure(sequence: str, counts: list[int]) -> list[dict]:
+def measure(sequence: str, counts: list[int], options: list[str]) -> list[dict]:
     rows = []
     with tempfile.TemporaryDirectory(prefix="dynmesh-memory-") as tmp:
         for n in counts:
             frames = looped(SHARED_DATA / sequence, n, Path(tmp) / f"in{n}")
             stream = Path(tmp) / f"s{n}.dmsh"
-            enc_mb, enc_s = peak_rss(["encode", frames, "-o", stream, "-q"])
+            enc_mb, enc_s = peak_rss(["encode", frames, "-o", stream, "-q", *options])
             dec_mb, dec_s = peak_rss(["decode", stream, "-o", Path(tmp) / f"out{n}", "-q"])
             rows.append({"frames": n, "enc_mb": enc_mb, "enc_s": enc_s, "dec_mb": dec_mb, "dec_s": dec_s,
                          "bytes": stream.stat().st_size})
@@ -65,15 +69,17 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sequence", default="basketball_player")
     ap.add_argument("--frames", type=int, nargs="+", default=[10, 100, 300])
+    ap.add_argument("--options", default="", help="dynmesh encode options, one string")
     ap.add_argument("--write", action="store_true", help="write the table into docs/benchmarks.md")
     a = ap.parse_args()
     if not check_data([a.sequence]):
         return
-    rows = measure(a.sequence, a.frames)
+    rows = measure(a.sequence, a.frames, a.options.split())
     table = markdown_table(rows, COLUMNS)
     print(table)
     if a.write:
-        write_section("long sequences in bounded memory", f"`{a.sequence}` looped, default options.\n\n{table}")
+        what = f"options `{a.options}`" if a.options else "default options"
+        write_section("long sequences in bounded memory", f"`{a.sequence}` looped, {what}.\n\n{table}")
 
 
 if __name__ == "__main__":

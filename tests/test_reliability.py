@@ -89,9 +89,9 @@ def test_a_failed_decode_leaves_no_directory_and_no_partial_frames(tmp_path, fra
     data = bytearray(stream.read_bytes())
     data[unit_starts(bytes(data))[2] + 20] ^= 0x10
     stream.write_bytes(bytes(data))
-    out = tmp_path / "new" 
+    out = tmp_path / "new" / "deeper" / "out"
     assert_clean_failure(run("decode", stream, "-o", out), "frame 2", "--skip-damaged")
-    assert not out.exists()
+    assert not (tmp_path / "new").exists()
     existing = tmp_path / "existing"
     existing.mkdir()
     (existing / "keep.txt").write_text("mine")

@@ -20,8 +20,11 @@ use crate::subdivide::{subdivide, Subdivision};
 use crate::transform;
 
 /// Largest subdivided mesh a stream may ask for; a bound on what a hostile stream can make
-/// the decoder allocate.
-pub const MAX_OUTPUT_FACES: usize = 1 << 25;
+/// the decoder allocate. A decode to OBJ peaks at about 190 bytes per output face (1.96M
+/// faces: 368 MB), so 2^23 faces keep it near 1.6 GB (2^25 would have been 6 GB). The largest
+/// input frame (`limits::MAX_INPUT_FACES`) at the largest default base ratio and three
+/// subdivisions makes 7.9M faces, within it.
+pub const MAX_OUTPUT_FACES: usize = 1 << 23;
 /// Output faces a frame may ask for per byte of its unit, beyond a floor of
 /// `MIN_FACE_ALLOWANCE`: so that a few corrupt bytes cannot make the decoder allocate
 /// gigabytes. Real streams need well under 100 (a 15 KB frame decodes to ~400k faces); the

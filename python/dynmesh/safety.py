@@ -48,7 +48,8 @@ class StagedDirectory:
     """Files written into a temporary directory and moved into ``target`` on ``commit``.
 
     ``path(name)`` gives where to write ``name`` now. Used as a context manager, a failure
-    (any exception) removes the temporary directory, and ``target`` if this created it."""
+    (any exception) removes the temporary directory and the parent directories this made;
+    ``target`` itself only comes into being on ``commit``."""
 
     def __init__(self, target: str | os.PathLike):
         self.target = Path(target)
@@ -56,14 +57,17 @@ class StagedDirectory:
             raise NotADirectoryError(20, "exists and is not a directory", str(self.target))
         self._created = not self.target.exists()
         parent = self.target.parent
-        if not parent.is_dir():
-            raise FileNotFoundError(2, "its parent directory does not exist", str(self.target))
+        # Missing parents are made, and removed again if the command fails.
+        missing = [p for p in [parent, *parent.parents] if not p.exists()]
+        self._made_parents = missing[::-1]
         self.stage = parent / f".{self.target.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
         try:
+            for p in self._made_parents:
+                p.mkdir()
             self.stage.mkdir()
         except OSError as e:
+            self._remove_made_parents()
             raise OSError(e.errno, e.strerror, str(self.target)) from None
-        self.names: list[str] = []
 
     def path(self, name: str) -> Path:
         return self.stage / name
@@ -82,6 +86,14 @@ class StagedDirectory:
 
     def discard(self) -> None:
         shutil.rmtree(self.stage, ignore_errors=True)
+        self._remove_made_parents()
+
+    def _remove_made_parents(self) -> None:
+        for p in reversed(self._made_parents):
+            try:
+                p.rmdir()
+            except OSError:
+                break
 
     def __enter__(self) -> StagedDirectory:
         return self
