@@ -21,7 +21,7 @@ for target in stream base motion uv coef; do
         > "$log" 2>&1 || { tail -n 40 "$log"; exit 1; }
     grep -E "^Done|stat::peak_rss_mb" "$log"
 done
-python fuzz/python/fuzz_readers.py seeds "$work/python"
+python fuzz/python/fuzz_readers.py seeds "$work/python" > "$work/python-seeds.log" 2>&1 || { tail -n 40 "$work/python-seeds.log"; exit 1; }
 for target in obj ply mtl texture; do
     echo "fuzz smoke: python $target (${seconds} s)"
     python fuzz/python/fuzz_readers.py "$target" -max_total_time="$seconds" -artifact_prefix="$work/" "$work/python/$target" \
