@@ -19,6 +19,10 @@ use dynmesh::texture::{self, Texture, UvMesh};
 
 use crate::{faces_of, positions_of};
 
+/// Largest metric grid size (the test conditions use 1024): the ray limit
+/// (`MAX_SAMPLE_RAYS`) is what bounds the work, this only catches a typo early.
+const MAX_GRID_SIZE: u32 = 16384;
+
 /// Largest image side `render` accepts (keeps a typo from allocating gigabytes).
 const MAX_IMAGE_SIDE: usize = 16384;
 
@@ -80,8 +84,11 @@ fn textured_distortion<'py>(
             "peak must be a positive finite number, not {peak}"
         )));
     }
+    py.allow_threads(|| crate::check_sampling(&reference.mesh, &decoded.mesh, &grid))?;
     let d =
         py.allow_threads(|| metrics::textured_mse(&reference, &ref_tex, &decoded, &dec_tex, &grid));
+    crate::check_measured(&[d.geometry.d1_mse, d.geometry.d2_mse])?;
+    crate::check_measured(&d.colour_mse)?;
     let [y, cb, cr] = d.colour_mse;
     let [y_psnr, cb_psnr, cr_psnr] = metrics::colour_psnr(d.colour_mse);
     let out = PyDict::new(py);
@@ -265,9 +272,9 @@ pub(crate) fn texture_of(a: &PyReadonlyArray3<u8>) -> PyResult<Texture> {
 }
 
 /// mmetric's sampling grid over a finite, non-inverted box.
-fn grid_of(box_min: [f64; 3], box_max: [f64; 3], grid_size: u32) -> PyResult<SamplingGrid> {
-    if grid_size < 2 {
-        return Err(PyValueError::new_err("grid size must be at least 2"));
+pub(crate) fn grid_of(box_min: [f64; 3], box_max: [f64; 3], grid_size: u32) -> PyResult<SamplingGrid> {
+    if !(2..=MAX_GRID_SIZE).contains(&grid_size) {
+        return Err(PyValueError::new_err(format!("grid size must be in 2..={MAX_GRID_SIZE}, not {grid_size}")));
     }
     let finite = box_min.iter().chain(&box_max).all(|v| v.is_finite());
     if !finite || (0..3).any(|k| box_min[k] > box_max[k]) {

@@ -202,9 +202,18 @@ struct Decoder {
 
 #[pymethods]
 impl Decoder {
+    /// `tolerant`: open a stream with damaged frame units (only the header must be intact);
+    /// `damage()` lists them and decoding a frame that depends on one fails.
     #[new]
-    fn new(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { inner: decoder::Decoder::new(data.to_vec()).map_err(decode_error)? })
+    #[pyo3(signature = (data, tolerant=false))]
+    fn new(data: &[u8], tolerant: bool) -> PyResult<Self> {
+        let open = if tolerant { decoder::Decoder::new_tolerant } else { decoder::Decoder::new };
+        Ok(Self { inner: open(data.to_vec()).map_err(decode_error)? })
+    }
+
+    /// The damaged frame units: [(frame, start offset, end offset, reason)].
+    fn damage(&self) -> Vec<(u32, u64, u64, String)> {
+        self.inner.damage().into_iter().map(|(f, d)| (f, d.start, d.end, d.reason.clone())).collect()
     }
 
     #[getter]
@@ -273,16 +282,49 @@ fn mesh_distortion(
 ) -> PyResult<(f64, f64, f64, f64)> {
     let a = mesh_of(&ref_positions, &ref_faces)?;
     let b = mesh_of(&dec_positions, &dec_faces)?;
-    if grid_size < 2 {
-        return Err(PyValueError::new_err("grid size must be at least 2"));
+    let grid = colour::grid_of(box_min, box_max, grid_size)?;
+    py.allow_threads(|| check_sampling(&a, &b, &grid))?;
+    let d = py.allow_threads(|| {
+        let (pa, pb) = rayon::join(|| metrics::sample_grid(&a.positions, &a.faces, &grid), || metrics::sample_grid(&b.positions, &b.faces, &grid));
+        metrics::distortion(&pa, &pb)
+    });
+    check_measured(&[d.d1_mse, d.d2_mse])?;
+    Ok((d.d1_mse, d.d2_mse, metrics::psnr(d.d1_mse, peak), metrics::psnr(d.d2_mse, peak)))
+}
+
+/// Most rays a metric may cast on one mesh: each can make a sample of about 32 bytes, and
+/// both meshes are sampled at once, so this keeps a comparison to a few gigabytes. The
+/// default grid (1024) casts a few million on a captured frame.
+pub(crate) const MAX_SAMPLE_RAYS: u64 = 1 << 25;
+
+/// Refuses a comparison whose sampling would be empty on either side (nothing to measure)
+/// or exceed [`MAX_SAMPLE_RAYS`], before any sample is made.
+pub(crate) fn check_sampling(reference: &Mesh, decoded: &Mesh, grid: &metrics::SamplingGrid) -> PyResult<()> {
+    for (what, m) in [("reference", reference), ("decoded", decoded)] {
+        let rays = metrics::ray_count(&m.positions, &m.faces, grid);
+        if rays == 0 {
+            return Err(PyValueError::new_err(format!(
+                "the {what} mesh has no surface to sample (all {} faces are degenerate or empty)",
+                m.faces.len()
+            )));
+        }
+        if rays > MAX_SAMPLE_RAYS {
+            return Err(PyValueError::new_err(format!(
+                "sampling the {what} mesh would cast {rays} rays, beyond the limit of {MAX_SAMPLE_RAYS}; \
+                 use a smaller grid size"
+            )));
+        }
     }
-    Ok(py.allow_threads(|| {
-        let grid = metrics::SamplingGrid::over_box(box_min, box_max, grid_size);
-        let pa = metrics::sample_grid(&a.positions, &a.faces, &grid);
-        let pb = metrics::sample_grid(&b.positions, &b.faces, &grid);
-        let d = metrics::distortion(&pa, &pb);
-        (d.d1_mse, d.d2_mse, metrics::psnr(d.d1_mse, peak), metrics::psnr(d.d2_mse, peak))
-    }))
+    Ok(())
+}
+
+/// Refuses error figures that are not finite: one side sampled to no points, so there is no
+/// measurement (identical geometry gives an MSE of 0, a PSNR of infinity, which stays).
+pub(crate) fn check_measured(mse: &[f64]) -> PyResult<()> {
+    if mse.iter().all(|m| m.is_finite()) {
+        return Ok(());
+    }
+    Err(PyValueError::new_err("no distortion can be measured: one of the meshes gives no sample on the grid"))
 }
 
 /// The encoder's default options, keyed as the Python API names them.

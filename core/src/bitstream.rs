@@ -284,11 +284,7 @@ fn typed_unit(unit_type: u8, payload: &[u8]) -> Vec<u8> {
 /// unit is attached to the frame unit before it. Returns exactly `header.frame_count` units
 /// or an error naming the first bad frame.
 pub fn read_units<'a>(data: &'a [u8], start: usize, frame_count: u32) -> Result<Vec<Unit<'a>>, DecodeError> {
-    // Each unit takes at least UNIT_OVERHEAD bytes, which bounds the allocation.
-    let plausible = (data.len().saturating_sub(start) / UNIT_OVERHEAD) as u32;
-    if frame_count > plausible {
-        return Err(DecodeError::new(None, 5, format!("header claims {frame_count} frames; the stream has room for at most {plausible}")));
-    }
+    check_frame_count(data, start, frame_count)?;
     let mut units = Vec::with_capacity(frame_count as usize);
     let mut pos = start;
     for f in 0..frame_count {
@@ -311,6 +307,16 @@ pub fn read_units<'a>(data: &'a [u8], start: usize, frame_count: u32) -> Result<
         return Err(DecodeError::new(None, pos as u64, format!("{} unexpected bytes after the last frame", data.len() - pos)));
     }
     Ok(units)
+}
+
+/// Refuses a frame count that the stream has no room for: each unit takes at least
+/// UNIT_OVERHEAD bytes, which bounds every allocation made per frame.
+pub fn check_frame_count(data: &[u8], start: usize, frame_count: u32) -> Result<(), DecodeError> {
+    let plausible = (data.len().saturating_sub(start) / UNIT_OVERHEAD) as u32;
+    if frame_count > plausible {
+        return Err(DecodeError::new(None, 5, format!("header claims {frame_count} frames; the stream has room for at most {plausible}")));
+    }
+    Ok(())
 }
 
 /// The unit at `pos`: its type byte, payload, payload offset and the position after it.

@@ -15,12 +15,16 @@ use crate::grid::Grid;
 use crate::mesh::Mesh;
 use crate::motion;
 use crate::quantize;
+use crate::resync::{self, Damage, FrameSlot, TextureSlot};
 use crate::subdivide::{subdivide, Subdivision};
 use crate::transform;
 
 /// Largest subdivided mesh a stream may ask for; a bound on what a hostile stream can make
-/// the decoder allocate.
-pub const MAX_OUTPUT_FACES: usize = 1 << 25;
+/// the decoder allocate. A decode to OBJ peaks at about 190 bytes per output face (1.96M
+/// faces: 368 MB), so 2^23 faces keep it near 1.6 GB (2^25 would have been 6 GB). The largest
+/// input frame (`limits::MAX_INPUT_FACES`) at the largest default base ratio and three
+/// subdivisions makes 7.9M faces, within it.
+pub const MAX_OUTPUT_FACES: usize = 1 << 23;
 /// Output faces a frame may ask for per byte of its unit, beyond a floor of
 /// `MIN_FACE_ALLOWANCE`: so that a few corrupt bytes cannot make the decoder allocate
 /// gigabytes. Real streams need well under 100 (a 15 KB frame decodes to ~400k faces); the
@@ -68,41 +72,48 @@ struct State {
     coefficients: Vec<i32>,
 }
 
-/// Position of a frame unit inside the stream.
-#[derive(Debug, Clone, Copy)]
-struct Span {
-    frame_type: FrameType,
-    offset: usize,
-    len: usize,
-    /// Offset and length of the frame's texture unit payload, if it has one.
-    texture: Option<(usize, usize)>,
-}
-
 /// A checked stream whose frames can be decoded in any order. Predicted frames are decoded
 /// from the intra frame before them; the last decoded frame's state is kept, so decoding
 /// in order costs one frame's work per frame.
 pub struct Decoder {
     data: Vec<u8>,
     header: SequenceHeader,
-    spans: Vec<Span>,
+    slots: Vec<FrameSlot>,
     last: Option<(u32, State)>,
 }
 
 impl Decoder {
-    /// Parses the header and splits the frame units, checking their lengths and CRCs.
+    /// Parses the header and splits the frame units, checking their lengths and CRCs; any
+    /// damaged unit is an error.
     pub fn new(data: Vec<u8>) -> Result<Self, DecodeError> {
         let (header, start) = bitstream::read_header(&data)?;
         let units = bitstream::read_units(&data, start, header.frame_count)?;
-        let spans = units
+        let slots = units
             .iter()
-            .map(|u| Span {
+            .map(|u| FrameSlot::Intact {
                 frame_type: u.frame_type,
                 offset: u.offset as usize,
                 len: u.payload.len(),
-                texture: u.texture.map(|(t, o)| (o as usize, t.len())),
+                texture: u.texture.map_or(TextureSlot::None, |(t, o)| TextureSlot::Intact(o as usize, t.len())),
             })
             .collect();
-        Ok(Self { header, spans, data, last: None })
+        Ok(Self { header, slots, data, last: None })
+    }
+
+    /// Opens a stream whose frame units may be damaged (see [`resync`]): only the sequence
+    /// header must be intact. Damaged frames, and frames whose reference chain runs through
+    /// one, fail in [`Decoder::decode_frame`]; [`Decoder::damage`] lists them.
+    pub fn new_tolerant(data: Vec<u8>) -> Result<Self, DecodeError> {
+        let (header, start) = bitstream::read_header(&data)?;
+        bitstream::check_frame_count(&data, start, header.frame_count)?;
+        let slots = resync::scan_units(&data, start, header.frame_count);
+        Ok(Self { header, slots, data, last: None })
+    }
+
+    /// The damaged frame units, by frame: (frame, where the damage is, why).
+    pub fn damage(&self) -> Vec<(u32, &Damage)> {
+        let slots = self.slots.iter().enumerate();
+        slots.filter_map(|(i, s)| if let FrameSlot::Damaged(d) = s { Some((i as u32, d)) } else { None }).collect()
     }
 
     pub fn header(&self) -> &SequenceHeader {
@@ -110,7 +121,7 @@ impl Decoder {
     }
 
     pub fn frame_count(&self) -> u32 {
-        self.spans.len() as u32
+        self.slots.len() as u32
     }
 
     /// Type, reference, QP and sizes of frame `index`.
@@ -129,6 +140,16 @@ impl Decoder {
 
     /// Decodes frame `index` into a mesh in the input's units.
     pub fn decode_frame(&mut self, index: u32) -> Result<Mesh, DecodeError> {
+        self.decode_chain(index).map_err(|e| match e.frame {
+            Some(f) if f != index => {
+                DecodeError::new(Some(index), e.offset, format!("its reference frame {f} does not decode: {}", e.reason))
+            }
+            _ => e,
+        })
+    }
+
+    /// [`Decoder::decode_frame`], its errors naming the frame of the chain that failed.
+    fn decode_chain(&mut self, index: u32) -> Result<Mesh, DecodeError> {
         let mut chain = vec![index];
         loop {
             let f = *chain.last().unwrap();
@@ -156,10 +177,15 @@ impl Decoder {
     }
 
     /// The payload of frame `index`'s texture unit and its offset in the stream; None when
-    /// the frame has none (an untextured stream, or a frame with nothing to add).
+    /// the frame has none (an untextured stream, or a frame with nothing to add). An error
+    /// when the unit is damaged.
     pub fn texture_payload(&self, index: u32) -> Result<Option<(&[u8], u64)>, DecodeError> {
-        let s = self.span(index)?;
-        Ok(s.texture.map(|(o, n)| (&self.data[o..o + n], o as u64)))
+        let FrameSlot::Intact { texture, .. } = self.slot(index)? else { return Ok(None) };
+        match *texture {
+            TextureSlot::None => Ok(None),
+            TextureSlot::Intact(o, n) => Ok(Some((&self.data[o..o + n], o as u64))),
+            TextureSlot::Damaged(o) => Err(DecodeError::new(Some(index), o as u64, "damaged texture unit")),
+        }
     }
 
     /// The frame index and base mesh (positions in the input's units, as
@@ -169,14 +195,17 @@ impl Decoder {
         self.last.as_ref().map(|(i, s)| (*i, Mesh::new(base_in_world_units(&self.header, &s.positions), s.faces.clone())))
     }
 
-    fn span(&self, index: u32) -> Result<&Span, DecodeError> {
-        self.spans.get(index as usize).ok_or_else(|| DecodeError::new(Some(index), 0, "no such frame"))
+    fn slot(&self, index: u32) -> Result<&FrameSlot, DecodeError> {
+        self.slots.get(index as usize).ok_or_else(|| DecodeError::new(Some(index), 0, "no such frame"))
     }
 
     fn unit(&self, index: u32) -> Result<Unit<'_>, DecodeError> {
-        let s = self.span(index)?;
-        let payload = &self.data[s.offset..s.offset + s.len];
-        Ok(Unit { frame_type: s.frame_type, payload, offset: s.offset as u64, texture: None })
+        match self.slot(index)? {
+            &FrameSlot::Intact { frame_type, offset, len, .. } => {
+                Ok(Unit { frame_type, payload: &self.data[offset..offset + len], offset: offset as u64, texture: None })
+            }
+            FrameSlot::Damaged(d) => Err(DecodeError::new(Some(index), d.start, format!("damaged frame unit: {}", d.reason))),
+        }
     }
 
     /// Decodes frame `f`'s base mesh and coefficients (a predicted frame on `reference`);

@@ -16,6 +16,7 @@ use crate::displace;
 use crate::ec;
 use crate::error::InputError;
 use crate::grid::{Grid, BITS_RANGE};
+use crate::limits;
 use crate::mesh::{cross, norm, sub, Mesh};
 use crate::motion;
 use crate::quantize::{self, AqParams};
@@ -300,10 +301,12 @@ impl SequenceEncoder {
     pub fn encode(&mut self, mesh: &Mesh) -> Result<EncodedFrame, InputError> {
         let start = Instant::now();
         mesh.validate()?;
+        limits::check_size(mesh)?;
         let welded = weld(mesh);
         if welded.faces.is_empty() {
             return Err(InputError("every face is degenerate once coincident vertices are merged".into()));
         }
+        limits::check_valence(&welded)?;
         let (h, cfg) = (&self.header, &self.config);
         let input = Mesh::new(welded.positions.iter().map(|&p| h.grid.to_grid(p)).collect(), welded.faces);
         let target = Bvh::new(&input.positions, &input.faces);
@@ -356,7 +359,7 @@ impl SequenceEncoder {
 
     fn intra(&self, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
         let h = &self.header;
-        let base_bytes = base_mesh_bytes(h, &self.config, &input.positions, &input.faces, target);
+        let base_bytes = base_mesh_bytes(h, &self.config, &input.positions, &input.faces, target)?;
         let (base, faces) = basecoder::decode_base(&base_bytes, h.base_bits)
             .map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
         let mut w = Writer::default();
@@ -500,13 +503,30 @@ fn area_weighted_squared_distance(positions: &[[f64; 3]], faces: &[[u32; 3]], su
 
 /// Decimates the input (grid units), refits the base mesh so that its subdivision fits the
 /// input `surface` (with `cfg.refit`) and codes the quantized base mesh.
-fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], faces: &[[u32; 3]], surface: &Bvh) -> Vec<u8> {
+fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], faces: &[[u32; 3]], surface: &Bvh) -> Result<Vec<u8>, InputError> {
     let target = ((faces.len() as f64 * cfg.base_ratio()).ceil() as usize).max(1);
     let base = decimate(input, faces, target);
+    if base.faces.len() > max_base_faces(target) {
+        // Decimation keeps every connected piece, so a soup of tiny pieces stays as large as
+        // the input, and its subdivision and fitting would cost quadratic time.
+        return Err(InputError(format!(
+            "the mesh falls apart into pieces too small to simplify: its {} faces decimate to {} base faces, \
+             not the {target} asked for (a triangle soup cannot be coded; weld or clean the mesh first)",
+            faces.len(),
+            base.faces.len()
+        )));
+    }
     let refitted = if cfg.refit { refit_base(&base, &h.schemes, surface) } else { base.positions };
     let base_grid = h.grid.coarser(h.base_bits);
     let positions: Vec<[u32; 3]> = refitted.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect();
-    basecoder::encode_base(&positions, &base.faces, h.base_bits)
+    Ok(basecoder::encode_base(&positions, &base.faces, h.base_bits))
+}
+
+/// The most base faces a decimation to `target` faces may leave before the input is
+/// refused: generous for meshes with a few small pieces (a captured frame's loose buttons),
+/// far below what a triangle soup leaves.
+pub fn max_base_faces(target: usize) -> usize {
+    4 * target + 1024
 }
 
 /// The quantized differences of coefficients `steps` (in quantization steps) from the

@@ -285,6 +285,22 @@ fn rasterize(tri: [[f32; 3]; 3], g: &GridF32, mut hit: impl FnMut(SampleKey, [f3
     }
 }
 
+/// Rays that [`sample_grid`] casts for `(positions, faces)` on `grid`, counted without casting
+/// them (each makes at most one raw sample): what sampling will cost in time and memory.
+pub fn ray_count(positions: &[[f64; 3]], faces: &[[u32; 3]], grid: &SamplingGrid) -> u64 {
+    let Some(g) = GridF32::new(grid) else { return 0 };
+    let rays = |face: &[u32; 3]| {
+        let Some((tri, _)) = fetch_triangle(positions, face) else { return 0 };
+        let Some(nrm) = face_normal(tri) else { return 0 };
+        let (_, second, third) = ray_axes(nrm);
+        let lines = |k: usize| {
+            line_count(((min3(tri, k) - g.origin[k]) / g.step).floor(), ((max3(tri, k) - g.origin[k]) / g.step).ceil())
+        };
+        lines(second).saturating_mul(lines(third))
+    };
+    faces.par_iter().map(rays).reduce(|| 0, u64::saturating_add)
+}
+
 /// Unit normal `normalize(cross(b - a, c - a))` in `f32`, or `None` for a triangle whose area
 /// is below `f64::EPSILON` (mmetric's degeneracy test).
 fn face_normal([a, b, c]: [[f32; 3]; 3]) -> Option<[f32; 3]> {

@@ -91,9 +91,14 @@ def encode_frames(
     keep_reconstructions: bool = False,
     on_frame: Callable[[int, dict], None] | None = None,
     texture: bool | str = "auto",
+    sequence: tuple[int, np.ndarray, np.ndarray] | None = None,
     **options,
 ) -> EncodeResult:
     """Encodes a sequence (Mesh objects or (positions, faces) pairs) into one stream.
+
+    ``sequence = (frame count, box min, box max)``, when the caller knows them, lets
+    ``frames`` be any iterable (a generator reading one file at a time) consumed once, so
+    that memory does not grow with the sequence: ``texture`` must then be True or False.
 
     Geometry options (see ``DEFAULTS``): qp, base_ratio, subdiv, scheme ("mixed" =
     midpoint then Loop on the last iteration, "midpoint", "loop", or a comma-separated list
@@ -114,16 +119,23 @@ def encode_frames(
     if unknown:
         raise ValueError(f"unknown encoder option(s): {', '.join(sorted(unknown))}")
     opts = {**DEFAULTS, **options}
-    meshes = [_as_mesh(f) for f in frames]
-    lo, hi = sequence_bounds(meshes)
+    if sequence is None:
+        meshes = [_as_mesh(f) for f in frames]
+        count, (lo, hi), textured = len(meshes), sequence_bounds(meshes), _textured(meshes, texture)
+    else:
+        (count, lo, hi), meshes, textured = sequence, (_as_mesh(f) for f in frames), texture
+        if textured not in (True, False):
+            raise ValueError("texture must be True or False when the sequence is given")
     try:
-        enc = _core.Encoder(len(meshes), lo.tolist(), hi.tolist(), opts)
+        enc = _core.Encoder(count, np.asarray(lo, float).tolist(), np.asarray(hi, float).tolist(), opts)
     except TypeError as e:
         raise ValueError(f"invalid encoder option: {e}") from None
-    tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions) if _textured(meshes, texture) else None
+    tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions) if textured else None
     parts = [[enc.header_bytes()]]
     result = EncodeResult(b"")
     for i, m in enumerate(meshes):
+        if i >= count:
+            raise ValueError(f"more than the {count} frames announced")
         try:
             unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
             closed = tex and tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, _image_of(m))
@@ -136,6 +148,8 @@ def encode_frames(
             result.reconstructions.append(Mesh(pos, faces))
         if on_frame is not None:
             on_frame(i, stats)
+    if len(result.frames) != count:
+        raise ValueError(f"{len(result.frames)} frames where {count} were announced")
     _place_texture_unit(parts, tex and tex.finish())
     if tex is not None and keep_reconstructions:
         for r, (uv, uv_faces), image in zip(result.reconstructions, tex.uvs, tex.images):
@@ -150,9 +164,9 @@ def encode(frames: Iterable, **options) -> bytes:
     return encode_frames(frames, **options).data
 
 
-def _open(data: bytes) -> _core.Decoder:
+def _open(data: bytes, tolerant: bool = False) -> _core.Decoder:
     try:
-        return _core.Decoder(bytes(data))
+        return _core.Decoder(bytes(data), tolerant)
     except _core.DecodeError as e:
         raise DecodeError(*e.args) from None
 
@@ -160,35 +174,69 @@ def _open(data: bytes) -> _core.Decoder:
 def decode(data: bytes) -> Iterator[Mesh]:
     """Yields the decoded frames of a stream, in order; frames of a textured stream carry
     their UVs and texture image. Raises DecodeError."""
-    dec = _open(data)
-    tex = _texture.TextureDecoder(dec, int(dec.header()["subdiv_iterations"]))
+    for _, mesh in _decode_frames(_open(data), tolerant=False):
+        if isinstance(mesh, DecodeError):
+            raise mesh
+        yield mesh
+
+
+def decode_each(data: bytes) -> Iterator[tuple[int, Mesh | DecodeError]]:
+    """Yields ``(index, Mesh)`` for every frame of a possibly damaged stream whose reference
+    chain (and texture unit) is intact, and ``(index, DecodeError)`` for the others, in
+    order. Only the sequence header must be intact (else DecodeError is raised)."""
+    return _decode_frames(_open(data, tolerant=True), tolerant=True)
+
+
+def _decode_frames(dec: _core.Decoder, tolerant: bool) -> Iterator[tuple[int, Mesh | DecodeError]]:
+    tex = _texture.TextureDecoder(dec, int(dec.header()["subdiv_iterations"]), tolerant)
     textured = tex.textured()
     for i in range(dec.frame_count):
         try:
             pos, faces = dec.decode_frame(i)
         except _core.DecodeError as e:
-            raise DecodeError(*e.args) from None
+            yield i, DecodeError(*e.args)
+            continue
         mesh = Mesh(pos, faces)
         if textured:
             try:
                 mesh.uvs, mesh.uv_faces, mesh.image = tex.texture_of(i)
             except ValueError as e:
-                raise DecodeError(str(e), i, 0) from None
-        yield mesh
+                yield i, DecodeError(str(e), i, 0)
+                continue
+        yield i, mesh
+
+
+def damage(data: bytes) -> list[dict]:
+    """The damaged frame units of a stream: ``frame``, ``offset`` and ``end`` (bytes of the
+    damaged stretch) and ``reason``; empty for an intact stream. Raises DecodeError when the
+    sequence header itself is damaged."""
+    dec = _open(data, tolerant=True)
+    return [{"frame": f, "offset": start, "end": end, "reason": reason} for f, start, end, reason in dec.damage()]
 
 
 def info(data: bytes) -> dict:
     """Sequence header and per-frame sizes of a stream (``texture_bytes``: the frame's
-    texture unit, which an intra frame of a textured stream carries for its group)."""
-    dec = _open(data)
-    try:
-        frames = [dec.frame_info(i) for i in range(dec.frame_count)]
-        for i, f in enumerate(frames):
+    texture unit, which an intra frame of a textured stream carries for its group).
+
+    A stream with damaged frame units still gets its header and intact frames; ``damaged``
+    lists the others (as :func:`damage` does) and their frame entries have ``type`` "?" and
+    ``damaged`` True. Raises DecodeError when the sequence header is unreadable."""
+    dec = _open(data, tolerant=True)
+    damaged = [{"frame": f, "offset": start, "end": end, "reason": reason} for f, start, end, reason in dec.damage()]
+    lost = {d["frame"]: d for d in damaged}
+    frames = []
+    for i in range(dec.frame_count):
+        if i in lost:
+            frames.append({"type": "?", "reference": None, "bytes": 0, "qp": 0, "base_bytes": 0,
+                           "displacement_bytes": 0, "texture_bytes": 0, "damaged": True})
+            continue
+        try:
+            f = dec.frame_info(i)
             t = dec.texture_payload(i)
-            f["texture_bytes"] = 0 if t is None else len(t[0])
-    except _core.DecodeError as e:
-        raise DecodeError(*e.args) from None
-    return {"bytes": len(data), "header": dec.header(), "frames": frames}
+        except _core.DecodeError as e:
+            raise DecodeError(*e.args) from None
+        frames.append({**f, "texture_bytes": 0 if t is None else len(t[0]), "damaged": False})
+    return {"bytes": len(data), "header": dec.header(), "frames": frames, "damaged": damaged}
 
 
 def _has_texture(m: Mesh) -> bool:
@@ -210,23 +258,37 @@ def metrics(reference, decoded, *, peak: float | None = None, grid_size: int = 1
         raise ValueError(f"{len(refs)} reference frames but {len(decs)} decoded frames")
     lo, hi = sequence_bounds(refs)
     peak = float(np.max(hi - lo)) if peak is None else float(peak)
-    if not peak > 0:
-        raise ValueError("peak must be positive")
+    if not (peak > 0 and np.isfinite(peak)):
+        raise ValueError(f"peak must be a positive finite number, not {peak}")
+    if not (isinstance(grid_size, (int, np.integer)) and 2 <= grid_size <= MAX_GRID_SIZE):
+        raise ValueError(f"grid size must be an integer in 2..{MAX_GRID_SIZE}, not {grid_size}")
     textured = all(_has_texture(m) for m in refs + decs)
     frames = []
-    for r, d in zip(refs, decs):
-        if textured:
-            frames.append(dict(_core.textured_distortion(
-                r.positions, r.faces, r.uvs, _uv_faces(r), _image_of(r),
-                d.positions, d.faces, d.uvs, _uv_faces(d), _image_of(d),
-                lo.tolist(), hi.tolist(), peak, grid_size)))
-        else:
-            d1, d2, p1, p2 = _core.mesh_distortion(r.positions, r.faces, d.positions, d.faces,
-                                                   lo.tolist(), hi.tolist(), peak, grid_size)
-            frames.append({"d1_mse": d1, "d2_mse": d2, "d1_psnr": p1, "d2_psnr": p2})
+    for i, (r, d) in enumerate(zip(refs, decs)):
+        try:
+            frames.append(_frame_metrics(r, d, textured, lo, hi, peak, grid_size))
+        except ValueError as e:
+            raise ValueError(f"frame {i}: {e}") from None
     keys = ("d1_psnr", "d2_psnr") + (("y_psnr", "cb_psnr", "cr_psnr") if textured else ())
     mean = {k: float(np.mean([f[k] for f in frames])) for k in keys}
     return {"peak": peak, "frames": frames, **mean}
+
+
+#: Largest metric grid size (the test conditions use 1024); the core also bounds the number
+#: of samples a comparison may make, whatever the grid.
+MAX_GRID_SIZE = 16384
+
+
+def _frame_metrics(r: Mesh, d: Mesh, textured: bool, lo, hi, peak: float, grid_size: int) -> dict:
+    """One frame's figures; ValueError when there is nothing to measure or too much to sample."""
+    if textured:
+        return dict(_core.textured_distortion(
+            r.positions, r.faces, r.uvs, _uv_faces(r), _image_of(r),
+            d.positions, d.faces, d.uvs, _uv_faces(d), _image_of(d),
+            lo.tolist(), hi.tolist(), peak, grid_size))
+    d1, d2, p1, p2 = _core.mesh_distortion(r.positions, r.faces, d.positions, d.faces,
+                                           lo.tolist(), hi.tolist(), peak, grid_size)
+    return {"d1_mse": d1, "d2_mse": d2, "d1_psnr": p1, "d2_psnr": p2}
 
 
 def _uv_faces(m: Mesh) -> np.ndarray:

@@ -7,10 +7,14 @@ import json
 import sys
 import tempfile
 import time
+import warnings
 from pathlib import Path
+
+import numpy as np
 
 from . import api, texture, video
 from .io import MeshError, read_mesh, write_mesh
+from .safety import StagedDirectory, mesh_inputs, refuse_inputs
 from .sequence import SequenceError, resolve_sequence
 
 
@@ -50,10 +54,48 @@ def _encoder_options(a) -> dict:
                 texture_size=a.texture_size, texture_qp=a.texture_qp, texture_codec=a.texture_codec)
 
 
+def _scan_sequence(paths: list[Path], quiet: bool) -> tuple[np.ndarray, np.ndarray, list[Path], list[bool]]:
+    """First pass over the frames, one in memory at a time: the sequence box, the texture
+    files they use, and which frames are textured."""
+    lo, hi, textures, textured = np.full(3, np.inf), np.full(3, -np.inf), [], []
+    with _progress(len(paths), "reading", quiet) as bar:
+        for i, p in enumerate(paths):
+            m = read_mesh(p)
+            try:
+                m_lo, m_hi = api.sequence_bounds([m])
+            except ValueError as e:
+                raise ValueError(f"frame {i}: {str(e).removeprefix('frame 0: ')}") from None
+            lo, hi = np.minimum(lo, m_lo), np.maximum(hi, m_hi)
+            textures += mesh_inputs([], [m])
+            textured.append(api._has_texture(m))
+            bar.update()
+    return lo, hi, textures, textured
+
+
+def _frames_again(paths: list[Path]):
+    """Second pass: the frames read again, one at a time (their warnings were shown once)."""
+    for p in paths:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mesh = read_mesh(p)
+        yield mesh
+
+
 def cmd_encode(a) -> dict:
-    paths, meshes = _read_sequence(a.input, a.start, a.count, a.quiet)
-    with _progress(len(meshes), "encoding", a.quiet) as bar:
-        result = api.encode_frames(meshes, on_frame=lambda i, s: bar.update(), **_encoder_options(a))
+    # Two passes over the files: the header needs the sequence box before the first frame,
+    # and holding every frame would make memory grow with the sequence.
+    paths = resolve_sequence(a.input, a.start, a.count)
+    refuse_inputs(a.output, paths)
+    lo, hi, textures, textured = _scan_sequence(paths, a.quiet)
+    refuse_inputs(a.output, textures)
+    options = _encoder_options(a)
+    texture_option = options.pop("texture")
+    if texture_option is True and not all(textured):
+        raise ValueError(f"frame {textured.index(False)}: texture coding asks for UVs and a texture image on every frame")
+    use_texture = all(textured) if texture_option == "auto" else texture_option
+    with _progress(len(paths), "encoding", a.quiet) as bar:
+        result = api.encode_frames(_frames_again(paths), on_frame=lambda i, s: bar.update(), texture=use_texture,
+                                   sequence=(len(paths), lo, hi), **options)
     api.write_bytes_atomic(a.output, result.data)
     frames = [{"frame": i, "input": str(p), **s} for i, (p, s) in enumerate(zip(paths, result.frames))]
     summary = {"output": str(a.output), "bytes": len(result.data), "texture_bytes": result.texture_bytes,
@@ -70,21 +112,39 @@ def cmd_encode(a) -> dict:
 
 def cmd_decode(a) -> dict:
     data = _read_bytes(a.input)
-    out = Path(a.output)
-    out.mkdir(parents=True, exist_ok=True)
-    n = api.info(data)["header"]["frame_count"]
-    written = []
+    refuse_inputs(a.output, [a.input], "output directory")
+    stream = api.info(data)
+    n = stream["header"]["frame_count"]
+    if stream["damaged"] and not a.skip_damaged:
+        d = stream["damaged"][0]
+        raise CliError(f"{a.input}: frame {d['frame']}, byte offset {d['offset']}: {d['reason']} "
+                       f"({len(stream['damaged'])} damaged frame(s); --skip-damaged decodes the others)")
+    written, damaged = [], []
     start = time.perf_counter()
-    with _progress(n, "decoding", a.quiet) as bar:
-        for i, mesh in enumerate(api.decode(data)):
-            path = out / f"frame_{i:04d}.{a.format}"
-            write_mesh(path, mesh)
-            written.append(str(path))
+    with StagedDirectory(a.output) as out, _progress(n, "decoding", a.quiet) as bar:
+        for i, mesh in (api.decode_each(data) if a.skip_damaged else enumerate(api.decode(data))):
+            if isinstance(mesh, api.DecodeError):
+                damaged.append({"frame": i, "offset": mesh.offset, "reason": str(mesh)})
+            else:
+                name = f"frame_{i:04d}.{a.format}"
+                refuse_inputs(out.final(name), [a.input])
+                write_mesh(out.path(name), mesh)
+                written.append(str(out.final(name)))
             bar.update()
+        if not written:
+            raise CliError(f"no frame of {a.input} decodes" + (f" (first: {damaged[0]['reason']})" if damaged else ""))
+        for extra in (".mtl", ".png"):  # textured frames' companions, beside them
+            for w in written:
+                refuse_inputs(Path(w).with_suffix(extra), [a.input])
+        out.commit()
     seconds = time.perf_counter() - start
     if not a.json:
-        print(f"decoded {len(written)} frames into {out} in {seconds:.2f} s")
-    return {"frames": written, "seconds": seconds}
+        print(f"decoded {len(written)} frames into {a.output} in {seconds:.2f} s")
+    for d in damaged:
+        print(f"dynmesh decode: frame {d['frame']} (byte {d['offset']}) skipped: {d['reason']}", file=sys.stderr)
+    if damaged:
+        a.failure = f"{len(damaged)} of {n} frames are damaged or depend on damaged data; decoded the other {len(written)}"
+    return {"frames": written, "seconds": seconds, "damaged": damaged}
 
 
 def cmd_info(a) -> dict:
@@ -94,10 +154,17 @@ def cmd_info(a) -> dict:
         print(f"{a.input}: {result['bytes']} bytes, {h['frame_count']} frames, {h['bits']}-bit positions "
               f"({h['base_bits']}-bit base mesh), "
               f"{h['subdiv_iterations']} subdivision(s) ({','.join(h['schemes']) or 'none'}), {h['components']} displacement component(s)")
-        rows = [{"frame": i, **f} for i, f in enumerate(result["frames"])]
+        lost = {d["frame"]: d for d in result["damaged"]}
+        rows = [{"frame": i, **f, "status": f"damaged at byte {lost[i]['offset']}" if i in lost else "ok"}
+                for i, f in enumerate(result["frames"])]
         print(_table(rows, [("frame", "frame", "d"), ("type", "type", "s"), ("qp", "qp", "d"),
                             ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
-                            ("displacement_bytes", "disp B", "d"), ("texture_bytes", "texture B", "d")]))
+                            ("displacement_bytes", "disp B", "d"), ("texture_bytes", "texture B", "d"),
+                            ("status", "status", "s")]))
+    if result["damaged"]:
+        first = result["damaged"][0]
+        a.failure = (f"{len(result['damaged'])} damaged frame unit(s), first frame {first['frame']} at byte "
+                     f"{first['offset']}: {first['reason']}")
     return result
 
 
@@ -112,7 +179,9 @@ def cmd_metrics(a) -> dict:
         print(_table(rows, [("frame", "frame", "d"), ("d1_psnr", "D1 PSNR", ".3f"), ("d2_psnr", "D2 PSNR", ".3f")] + colour))
         of_texture = (f", Y {result['y_psnr']:.3f} dB, Cb {result['cb_psnr']:.3f} dB, Cr {result['cr_psnr']:.3f} dB"
                       if colour else "")
-        print(f"mean D1 {result['d1_psnr']:.3f} dB, D2 {result['d2_psnr']:.3f} dB{of_texture} (peak {result['peak']:.6g})")
+        identical = " (infinite: the sampled geometry is identical)" if result["d1_psnr"] == float("inf") else ""
+        print(f"mean D1 {result['d1_psnr']:.3f} dB, D2 {result['d2_psnr']:.3f} dB{of_texture} "
+              f"(peak {result['peak']:.6g}){identical}")
     return result
 
 
@@ -309,6 +378,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", required=True, help="output directory")
     p.add_argument("--format", choices=["obj", "ply"], default="obj",
                    help="obj (with .mtl and .png when the stream is textured) or ply (geometry only)")
+    p.add_argument("--skip-damaged", action="store_true",
+                   help="decode every frame whose reference chain is intact, report the others (frame number "
+                        "and byte offset) and exit with status 1; without it a damaged stream is an error")
     _common(p)
     p.set_defaults(run=cmd_decode)
 
@@ -361,12 +433,20 @@ def parser() -> argparse.ArgumentParser:
     return top
 
 
+def _message(e: Exception) -> str:
+    """One line for the user; an OSError names its file, not its errno."""
+    if isinstance(e, OSError) and e.strerror:
+        return f"{e.filename}: {e.strerror}" if e.filename else e.strerror
+    return str(e)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
+    args.failure = None  # set by a command that did its work but must still exit non-zero
     try:
         result = args.run(args)
-    except (CliError, MeshError, SequenceError, api.DecodeError, ValueError, OSError) as e:
-        print(f"dynmesh {args.command}: error: {e}", file=sys.stderr)
+    except (CliError, MeshError, SequenceError, api.DecodeError, ValueError, OSError, MemoryError) as e:
+        print(f"dynmesh {args.command}: error: {_message(e)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
@@ -374,6 +454,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         json.dump(result, sys.stdout, indent=1, default=str)
         print()
+    if args.failure:
+        print(f"dynmesh {args.command}: error: {args.failure}", file=sys.stderr)
+        return 1
     return 0
 
 

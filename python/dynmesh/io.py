@@ -134,9 +134,17 @@ def _parsed(parse, data: bytes, path: Path):
         raise MeshError(path, message, line) from None
 
 
+def _is_file(path: Path) -> bool:
+    """``path.is_file()``, False also for names no file can have (too long, a NUL byte)."""
+    try:
+        return path.is_file()
+    except (OSError, ValueError):
+        return False
+
+
 def _note_missing_texture(texture: Path | None, notes: list[str]) -> None:
-    if texture is not None and not texture.is_file():
-        notes.append(f"texture file {texture} not found")
+    if texture is not None and not _is_file(texture):
+        notes.append(f"texture file {texture!s:.200} not found")
 
 
 def _read_obj(data: bytes, path: Path, notes: list[str]) -> Mesh:
@@ -150,7 +158,7 @@ def _obj_texture(path: Path, mtllibs: list[str], materials: list[str], notes: li
     textures: dict[str, Path] = {}
     for lib in mtllibs:
         # One mtllib line may list several libraries, or one name containing spaces.
-        for name in [lib] if (path.parent / lib).is_file() else lib.split():
+        for name in [lib] if _is_file(path.parent / lib) else lib.split():
             for material, texture in _read_mtl(path.parent / name, notes).items():
                 textures.setdefault(material, texture)
     # Without usemtl the file still names a library; its first textured material is meant.
@@ -167,8 +175,8 @@ def _read_mtl(mtl: Path, notes: list[str]) -> dict[str, Path]:
     """material name -> texture path for every material with a map_Kd."""
     try:
         text = mtl.read_text("utf-8", "replace")
-    except OSError:
-        notes.append(f"material library {mtl} not found; texture ignored")
+    except (OSError, ValueError):  # ValueError: a name with a NUL byte, which no file has
+        notes.append(f"material library {mtl!s:.200} not found; texture ignored")
         return {}
     textures: dict[str, Path] = {}
     material = None
@@ -254,8 +262,11 @@ def _uv_faces(path: Path, mesh: Mesh) -> np.ndarray:
 def _atomic_write(path: Path, chunks: Iterable[bytes]) -> None:
     """Write ``chunks`` to a temporary file beside ``path``, then rename it into place."""
     tmp = path.with_name(f".{path.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp")
-    # os.open with mode 0o666 lets the umask decide permissions, as a plain open() would.
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+    try:
+        # os.open with mode 0o666 lets the umask decide permissions, as a plain open() would.
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0), 0o666)
+    except OSError as e:
+        raise _named(e, path) from None
     try:
         with os.fdopen(fd, "wb") as f:
             for chunk in chunks:
@@ -263,12 +274,21 @@ def _atomic_write(path: Path, chunks: Iterable[bytes]) -> None:
             f.flush()
             os.fsync(f.fileno())  # the rename must not become visible before the data
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as e:
         try:
             os.unlink(tmp)
         except OSError:
             pass
+        if isinstance(e, OSError):
+            raise _named(e, path) from None
         raise
+
+
+def _named(e: OSError, path: Path) -> OSError:
+    """``e`` naming the user's ``path`` rather than the temporary file."""
+    if e.errno is None:
+        return OSError(f"{path}: {e}")
+    return type(e)(e.errno, e.strerror, str(path))
 
 
 def _write_obj(path: Path, mesh: Mesh, ascii: bool) -> None:

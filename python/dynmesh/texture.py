@@ -159,12 +159,23 @@ class TextureDecoder:
     """Gives each decoded frame its UVs and texture image. Decoding in order decodes each
     group's video once; going back inside a group decodes its video again from the start."""
 
-    def __init__(self, decoder, subdiv: int):
+    def __init__(self, decoder, subdiv: int, tolerant: bool = False):
         self._dec = decoder
         self._subdiv = subdiv
         self._open: _OpenGroup | None = None
+        # A damaged stream may have lost group starts: then each group's own frame count
+        # says how far it reaches, instead of the next start.
+        self._tolerant = tolerant
+        self._damaged: dict[int, str] = {}
         # First frames of the texture groups, found once: each lookup copies a payload.
-        self._starts = [f for f in range(decoder.frame_count) if decoder.texture_payload(f) is not None]
+        self._starts = [f for f in range(decoder.frame_count) if self._has_payload(f)]
+
+    def _has_payload(self, frame: int) -> bool:
+        try:
+            return self._dec.texture_payload(frame) is not None
+        except ValueError as e:  # a damaged texture unit, in a tolerant decoder
+            self._damaged[frame] = str(e)
+            return True
 
     def textured(self) -> bool:
         """Whether the stream carries textures (its first frame has a texture unit)."""
@@ -195,12 +206,14 @@ class TextureDecoder:
         return g.uv, g.uv_faces, g.image
 
     def _opened(self, first: int, length: int) -> _OpenGroup:
+        if first in self._damaged:
+            raise ValueError(f"the texture unit of its group (frame {first}) is damaged: {self._damaged[first]}")
         payload, offset = self._dec.texture_payload(first)
         try:
             header = unpack_group(payload)
         except ValueError as e:
             raise ValueError(f"frame {first}: {e} (texture unit at byte {offset})") from None
-        if header.frames != length:
+        if header.frames > length or (header.frames != length and not self._tolerant):
             raise ValueError(f"frame {first}: texture unit claims {header.frames} frames, its group has {length}")
         # Every frame of the group has the intra frame's base connectivity, but only the
         # intra frame's own positions are those the atlas was coded on.
