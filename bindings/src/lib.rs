@@ -196,8 +196,19 @@ struct Decoder {
 #[pymethods]
 impl Decoder {
     #[new]
-    fn new(data: &[u8]) -> PyResult<Self> {
-        Ok(Self { inner: decoder::Decoder::new(data.to_vec()).map_err(decode_error)? })
+    #[pyo3(signature = (data, lod=None))]
+    fn new(data: &[u8], lod: Option<u32>) -> PyResult<Self> {
+        let mut inner = decoder::Decoder::new(data.to_vec()).map_err(decode_error)?;
+        if let Some(lod) = lod {
+            inner.set_lod(lod).map_err(pyo3::exceptions::PyValueError::new_err)?;
+        }
+        Ok(Self { inner })
+    }
+
+    /// Subdivision iterations decoded (the level of detail).
+    #[getter]
+    fn lod(&self) -> u32 {
+        self.inner.lod()
     }
 
     #[getter]

@@ -150,18 +150,19 @@ def encode(frames: Iterable, **options) -> bytes:
     return encode_frames(frames, **options).data
 
 
-def _open(data: bytes) -> _core.Decoder:
+def _open(data: bytes, lod: int | None = None) -> _core.Decoder:
     try:
-        return _core.Decoder(bytes(data))
+        return _core.Decoder(bytes(data), lod)
     except _core.DecodeError as e:
         raise DecodeError(*e.args) from None
 
 
-def decode(data: bytes) -> Iterator[Mesh]:
+def decode(data: bytes, lod: int | None = None) -> Iterator[Mesh]:
     """Yields the decoded frames of a stream, in order; frames of a textured stream carry
-    their UVs and texture image. Raises DecodeError."""
-    dec = _open(data)
-    tex = _texture.TextureDecoder(dec, int(dec.header()["subdiv_iterations"]))
+    their UVs and texture image. ``lod`` stops after that many subdivision iterations
+    (default: all of the stream's). Raises DecodeError, or ValueError for a bad ``lod``."""
+    dec = _open(data, lod)
+    tex = _texture.TextureDecoder(dec, dec.lod)
     textured = tex.textured()
     for i in range(dec.frame_count):
         try:
