@@ -69,22 +69,46 @@ def cmd_encode(a) -> dict:
 
 
 def cmd_decode(a) -> dict:
+    from .conformance import frame_hash
+
     data = _read_bytes(a.input)
-    out = Path(a.output)
-    out.mkdir(parents=True, exist_ok=True)
+    if a.output is None and not a.hash:
+        raise CliError("give an output directory (-o) or --hash")
+    out = Path(a.output) if a.output is not None else None
+    if out is not None:
+        out.mkdir(parents=True, exist_ok=True)
     n = api.info(data)["header"]["frame_count"]
-    written = []
+    written, hashes = [], []
     start = time.perf_counter()
-    with _progress(n, "decoding", a.quiet) as bar:
-        for i, mesh in enumerate(api.decode(data)):
-            path = out / f"frame_{i:04d}.{a.format}"
-            write_mesh(path, mesh)
-            written.append(str(path))
+    with _progress(n, "decoding", a.quiet or (a.hash and not a.json)) as bar:
+        for i, mesh in enumerate(api.decode(data, lod=a.lod)):
+            if a.hash:
+                hashes.append(frame_hash(mesh))
+                if not a.json:
+                    print(f"frame {i} sha256 {hashes[-1]}", flush=True)
+            if out is not None:
+                written.append(str(_write_frame(out / f"frame_{i:04d}.{a.format}", mesh)))
             bar.update()
     seconds = time.perf_counter() - start
-    if not a.json:
+    if not a.json and out is not None and not a.hash:
         print(f"decoded {len(written)} frames into {out} in {seconds:.2f} s")
-    return {"frames": written, "seconds": seconds}
+    return {"frames": written, "seconds": seconds, **({"sha256": hashes} if a.hash else {})}
+
+
+def _write_frame(path: Path, mesh) -> Path:
+    if path.suffix == ".glb":
+        from .gltf import glb_bytes
+
+        api.write_bytes_atomic(path, glb_bytes(mesh, path.stem))
+    else:
+        write_mesh(path, mesh)
+    return path
+
+
+def cmd_play(a) -> dict:
+    from .player import serve
+
+    return serve(a.input, port=a.port, open_browser=not a.no_browser, quiet=a.quiet or a.json)
 
 
 def cmd_info(a) -> dict:
@@ -218,6 +242,16 @@ def _read_bytes(path: str) -> bytes:
         raise CliError(f"cannot read {path}: {e.strerror}") from None
 
 
+def _non_negative(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return v
+
+
 def _sequence_args(p):
     p.add_argument("--start", type=int, help="first frame (index into the sorted list, or number for a printf pattern)")
     p.add_argument("--count", type=int, help="number of frames")
@@ -279,11 +313,26 @@ def parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("decode", help="decode a stream into mesh files", description="Decode a .dmsh stream into frame_0000.obj, ...")
     p.add_argument("input")
-    p.add_argument("-o", "--output", required=True, help="output directory")
-    p.add_argument("--format", choices=["obj", "ply"], default="obj",
-                   help="obj (with .mtl and .png when the stream is textured) or ply (geometry only)")
+    p.add_argument("-o", "--output", help="output directory (optional with --hash)")
+    p.add_argument("--format", choices=["obj", "ply", "glb"], default="obj",
+                   help="obj (with .mtl and .png when the stream is textured), ply (geometry only) or glb "
+                        "(glTF 2.0 binary with normals, and UVs and the texture image when textured)")
+    p.add_argument("--hash", action="store_true",
+                   help="print 'frame N sha256 HEX' per frame: SHA-256 of the positions as little-endian float64, "
+                        "then the faces as little-endian uint32 (as web/bin/dynmesh-decode.js --hash)")
+    p.add_argument("--lod", type=_non_negative, metavar="K",
+                   help="level of detail: stop after K subdivision iterations (default: all of the stream's)")
     _common(p)
     p.set_defaults(run=cmd_decode)
+
+    p = sub.add_parser("play", help="play a stream in the browser",
+                       description="Serve a web player for a .dmsh stream on 127.0.0.1: the page decodes the stream "
+                                   "in the browser with the JavaScript decoder and plays it.")
+    p.add_argument("input")
+    p.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (default 8765; 0 = any free port)")
+    p.add_argument("--no-browser", action="store_true", help="only serve; do not open a browser")
+    _common(p)
+    p.set_defaults(run=cmd_play)
 
     p = sub.add_parser("info", help="show headers and per-frame sizes of a stream")
     p.add_argument("input")

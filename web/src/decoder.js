@@ -45,7 +45,7 @@ export class Decoder {
     this.units = readUnits(data, this.header);
     const s = this.header.schemes.length;
     const lod = options.lod ?? s;
-    if (!Number.isInteger(lod) || lod < 0 || lod > s) throw new RangeError(`level of detail ${lod} out of range 0..${s}`);
+    if (!Number.isInteger(lod) || lod < 0 || lod > s) throw new RangeError(`level of detail ${lod} out of range (the stream has ${s} subdivision iterations)`);
     this.lod = lod;
     /** @type {{index:number, state:object}|null} */
     this.last = null;
