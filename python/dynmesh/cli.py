@@ -108,7 +108,7 @@ def _write_frame(path: Path, mesh) -> Path:
 def cmd_play(a) -> dict:
     from .player import serve
 
-    return serve(a.input, port=a.port, open_browser=not a.no_browser, quiet=a.quiet or a.json)
+    return serve(a.input, port=a.port, open_browser=not a.no_browser, quiet=a.quiet or a.json, fps=a.fps)
 
 
 def cmd_info(a) -> dict:
@@ -331,6 +331,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("input")
     p.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (default 8765; 0 = any free port)")
     p.add_argument("--no-browser", action="store_true", help="only serve; do not open a browser")
+    p.add_argument("--fps", type=float, default=30.0, help="frame rate (the stream does not carry one; default 30)")
     _common(p)
     p.set_defaults(run=cmd_play)
 
