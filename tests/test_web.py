@@ -16,7 +16,7 @@ import pytest
 
 from conftest import SHARED_DATA
 from dynmesh import api
-from dynmesh.conformance import frame_hash
+from dynmesh.conformance import frame_hash, uv_hash
 from dynmesh.io import read_mesh
 from dynmesh.sequence import resolve_sequence
 
@@ -114,6 +114,19 @@ def test_damaged_streams_give_the_same_errors_in_both_decoders(tmp_path):
 
 
 SHARED = ["dancer", "mitch", "horse_gallop", "collision"]
+
+
+@pytest.mark.skipif(not (SHARED_DATA / "basketball_textured").is_dir(), reason="../shared/data is absent")
+def test_js_decodes_the_uv_atlas_of_a_textured_capture_as_rust_does(tmp_path):
+    frames = [read_mesh(p) for p in resolve_sequence(str(SHARED_DATA / "basketball_textured"), None, 2)]
+    data = api.encode(frames, qp=28, texture_size=256)
+    path = tmp_path / "textured.dmsh"
+    path.write_bytes(data)
+    for lod in (None, 1):
+        (j,) = js_decode([path], lod)
+        decoded = list(api.decode(data, lod=lod))
+        assert j["hashes"] == [frame_hash(m) for m in decoded]
+        assert j["uvHashes"] == [uv_hash(m) for m in decoded]
 
 
 @pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="../shared/data is absent")

@@ -38,6 +38,9 @@ fn manifest() -> BTreeMap<String, BTreeMap<u32, Vec<String>>> {
     for line in text.lines().filter(|l| !l.trim().is_empty()) {
         let w: Vec<&str> = line.split(' ').collect();
         assert_eq!(w.len(), 7, "bad manifest line {line:?}");
+        if w[5] != "sha256" {
+            continue; // uvsha256: textured frames' UVs, which the Python decoder makes
+        }
         let frames = out.entry(w[0].into()).or_default().entry(w[2].parse().unwrap()).or_default();
         assert_eq!(frames.len(), w[4].parse::<usize>().unwrap(), "frames in order: {line:?}");
         frames.push(w[6].into());

@@ -6,7 +6,8 @@ short streams from the built-in synthetic sequence, one per coding tool (intra a
 frames, predicted through constant topology and through the anchor mesh, each subdivision
 scheme, AQ on and off, normal-only and all-component coefficients, a textured stream), and
 writes them with ``manifest.txt``: one line ``STREAM lod K frame N sha256 HEX`` per frame and
-level of detail, the hash of ``frame_hash``; and ``scales.txt``, the quantization scale of
+level of detail, the hash of ``frame_hash`` (and for textured frames a ``uvsha256`` line, the
+hash of their UVs, ``uv_hash``); and ``scales.txt``, the quantization scale of
 every bit depth and QP (the decoders' one libm call). Rerun it whenever the bitstream changes; the
 files are written to temporary names and renamed, so an interrupted run leaves the old set.
 """
@@ -89,13 +90,26 @@ def frame_hash(mesh) -> str:
     return h.hexdigest()
 
 
+def uv_hash(mesh) -> str:
+    """SHA-256 of a textured frame's UVs: the UVs as little-endian float64, then the UV faces
+    as little-endian uint32."""
+    import hashlib
+
+    h = hashlib.sha256(np.ascontiguousarray(mesh.uvs, "<f8").tobytes())
+    h.update(np.ascontiguousarray(mesh.uv_faces, "<u4").tobytes())
+    return h.hexdigest()
+
+
 def hash_lines(name: str, data: bytes) -> list[str]:
-    """The manifest lines of one stream: every frame at every level of detail."""
+    """The manifest lines of one stream: every frame at every level of detail (and, for a
+    textured stream, a ``uvsha256`` line per frame: its UVs)."""
     levels = int(api.info(data)["header"]["subdiv_iterations"])
     lines = []
     for lod in range(levels + 1):
         for i, m in enumerate(api.decode(data, lod=lod)):
             lines.append(f"{name} lod {lod} frame {i} sha256 {frame_hash(m)}")
+            if m.uvs is not None:
+                lines.append(f"{name} lod {lod} frame {i} uvsha256 {uv_hash(m)}")
     return lines
 
 
