@@ -2,14 +2,15 @@
 // renderer.js at the stream's frame rate, with play/pause, frame steps, a scrub bar, a
 // wireframe toggle, a level-of-detail choice, and a timeline of frame types and sizes.
 //
-// Contract for tests: `window.dynmeshPlayer` exposes `state` ({frame, decoded, frames,
-// playing, error, textured, textureNote}) and `seek(i)`, `play()`, `pause()`.
+// Contract for tests: `window.dynmeshPlayer` exposes `state` ({frame, shown (the frame on
+// screen), advanced (frames played), decoded, frames, playing, error, textured, textureNote}) and `seek(i)`, `play()`,
+// `pause()`.
 
 import { Renderer } from './renderer.js';
 import { TexturePlayer } from './video.js';
 
 const $ = (id) => document.getElementById(id);
-const state = { frame: 0, decoded: 0, frames: 0, playing: false, error: null, textured: false, textureNote: '' };
+const state = { frame: 0, shown: -1, advanced: 0, decoded: 0, frames: 0, playing: false, error: null, textured: false, textureNote: '' };
 const frames = [];
 let infos = [], header = null, fps = 30, token = 0, worker = null, stream = null, texture = null;
 const renderer = new Renderer($('view'));
@@ -66,7 +67,6 @@ function setup(h, frameInfos, lod) {
   const select = $('lod');
   if (first) {
     for (let k = h.schemes.length; k >= 0; k--) select.add(new Option(k === h.schemes.length ? `${k} (full)` : String(k), String(k)));
-    renderer.frame(h.extent / 2);
     setupTexture();
   }
   select.value = String(lod < 0 ? h.schemes.length : lod);
@@ -80,11 +80,26 @@ function setupTexture() {
 }
 
 function received(frame) {
+  if (!framed) aim(frame);
   frames[frame.index] = frame;
   state.decoded = frame.index + 1;
   if (frame.index === state.frame) show(state.frame);
   status(describe());
   drawTimeline();
+}
+
+let framed = false;
+/** Aims the camera at the first decoded frame's bounding box. */
+function aim(frame) {
+  const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+  for (let i = 0; i < frame.positions.length; i++) {
+    const k = i % 3, x = frame.positions[i];
+    if (x < lo[k]) lo[k] = x;
+    if (x > hi[k]) hi[k] = x;
+  }
+  const centre = lo.map((l, k) => (l + hi[k]) / 2);
+  renderer.frame(centre, Math.max(1e-9, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2));
+  framed = true;
 }
 
 function describe() {
@@ -102,8 +117,12 @@ async function show(i) {
   if (f) {
     renderer.setMesh(f);
     const image = texture && f.uvs ? await texture.image(i) : null;
+    state.textured = Boolean(texture && texture.textured);
+    state.textureNote = texture ? texture.note : '';
     if (state.frame !== i) return;
+    renderer.setMesh(f);
     renderer.setTexture(image);
+    state.shown = i;
   }
   renderer.draw();
   drawTimeline();
@@ -120,6 +139,7 @@ function tick(now) {
     const next = (state.frame + 1) % Math.max(1, state.frames);
     if (frames[next]) {
       last = now;
+      state.advanced++;
       show(next);
     }
   }

@@ -3,14 +3,15 @@
 //
 // Contract: `new Renderer(canvas)`; `setMesh({positions, normals, faces, uvs?})` uploads a
 // frame; `setTexture(source|null)` takes anything texImage2D takes (a VideoFrame, a canvas);
-// `draw()` renders with the current camera; `orbit(dx, dy)` and `zoom(f)` move the camera.
+// `draw()` renders with the current camera; `frame(centre, radius)` aims it, `orbit(dx, dy)`
+// and `zoom(f)` move it.
 // Throws if the browser has no WebGL2.
 
 const VS = `#version 300 es
 in vec3 position; in vec3 normal; in vec2 uv;
-uniform mat4 mvp; uniform mat4 view;
+uniform mat4 mvp; uniform mat4 view; uniform vec3 target;
 out vec3 vnormal; out vec2 vuv;
-void main() { vnormal = mat3(view) * normal; vuv = uv; gl_Position = mvp * vec4(position, 1.0); }`;
+void main() { vnormal = mat3(view) * normal; vuv = uv; gl_Position = mvp * vec4(position - target, 1.0); }`;
 
 const FS = `#version 300 es
 precision highp float;
@@ -71,21 +72,22 @@ export class Renderer {
     gl.linkProgram(p);
     if (!gl.getProgramParameter(p, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(p));
     this.program = p;
-    this.loc = Object.fromEntries(['mvp', 'view', 'mode', 'tex', 'colour'].map((n) => [n, gl.getUniformLocation(p, n)]));
+    this.loc = Object.fromEntries(['mvp', 'view', 'mode', 'tex', 'colour', 'target'].map((n) => [n, gl.getUniformLocation(p, n)]));
     this.vao = gl.createVertexArray();
     this.buffers = { position: gl.createBuffer(), normal: gl.createBuffer(), uv: gl.createBuffer(), index: gl.createBuffer(), edges: gl.createBuffer() };
     this.texture = null;
     this.count = 0;
     this.edgeCount = 0;
     this.wireframe = false;
-    this.yaw = 0.6; this.pitch = -0.35; this.distance = 3; this.radius = 1;
+    this.yaw = 0.6; this.pitch = -0.35; this.distance = 3; this.radius = 1; this.target = [0, 0, 0];
     gl.enable(gl.DEPTH_TEST);
   }
 
-  /** Sets the scene size: the camera frames a sphere of `radius` around the origin. */
-  frame(radius) {
+  /** Points the camera at a sphere of `radius` around `centre` (the first frame's box). */
+  frame(centre, radius) {
+    this.target = centre;
     this.radius = radius;
-    this.distance = 2.6 * radius;
+    this.distance = 2.2 * radius;
   }
 
   setMesh(mesh) {
@@ -152,6 +154,7 @@ export class Renderer {
     gl.useProgram(this.program);
     gl.uniformMatrix4fv(this.loc.mvp, false, multiply(proj, view));
     gl.uniformMatrix4fv(this.loc.view, false, view);
+    gl.uniform3fv(this.loc.target, this.target);
     gl.bindVertexArray(this.vao);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, this.buffers.index);
     const textured = this.textured && this.hasUvs;

@@ -1,8 +1,8 @@
 #!/usr/bin/env node
 // browser-check.js URL OUTDIR [--wireframe] [--lod K]: opens the player page at URL in headless
 // Debian Chromium (playwright-core, CHROMIUM or /usr/bin/chromium), waits until every frame is
-// decoded, screenshots frame 0, plays until the frame changes twice, screenshots again, steps
-// to the last frame, and prints a JSON summary (the page's state and console errors). The
+// decoded, screenshots frame 0, plays until the frame changed twice, pauses, screenshots
+// again, goes to the last frame, and prints a JSON summary (the page's state and console errors). The
 // pixel checks are the caller's (tests/test_player.py).
 import { chromium } from 'playwright-core';
 import { mkdirSync } from 'node:fs';
@@ -32,11 +32,12 @@ try {
   await page.screenshot({ path: `${out}/frame_first.png` });
   const t0 = Date.now();
   await page.click('#play');
-  await page.waitForFunction(() => window.dynmeshPlayer.state.frame >= 2, null, { timeout: 30000 });
+  await page.waitForFunction(() => window.dynmeshPlayer.state.advanced >= 2, null, { timeout: 30000 });
   result.playSeconds = (Date.now() - t0) / 1000;
   await page.click('#play');
   result.paused = await page.evaluate(() => ({ ...window.dynmeshPlayer.state }));
   await page.waitForTimeout(300);
+  result.pausedLater = await page.evaluate(() => ({ ...window.dynmeshPlayer.state }));
   await page.screenshot({ path: `${out}/frame_played.png` });
   await page.evaluate(() => window.dynmeshPlayer.seek(window.dynmeshPlayer.state.frames - 1));
   await page.waitForTimeout(300);
