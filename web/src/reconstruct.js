@@ -37,9 +37,16 @@ function valences(n, faces) {
   }
   const out = new Uint32Array(n);
   for (let v = 0; v < n; v++) {
-    const list = nb.subarray(start[v], start[v + 1]).sort();
+    // Insertion sort in place: lists are short (twice the faces around the vertex).
+    const from = start[v], to = start[v + 1];
+    for (let i = from + 1; i < to; i++) {
+      const x = nb[i];
+      let j = i - 1;
+      for (; j >= from && nb[j] > x; j--) nb[j + 1] = nb[j];
+      nb[j + 1] = x;
+    }
     let d = 0;
-    for (let j = 0; j < list.length; j++) if (j === 0 || list[j] !== list[j - 1]) d++;
+    for (let j = from; j < to; j++) if (j === from || nb[j] !== nb[j - 1]) d++;
     out[v] = d;
   }
   return out;
@@ -55,11 +62,14 @@ export function vertexScales(header, qp, sub) {
   const scales = lodScales(qp, header.bits, lod.length - 1);
   const out = new Float64Array(n);
   const val = header.aq ? valences(n, sub.faces) : null;
+  const alpha = header.aq ? header.aq.alpha : 1, h = header.aq ? header.aq.h : 1;
   for (let level = 0; level + 1 < lod.length; level++) {
-    for (let v = lod[level]; v < lod[level + 1]; v++) {
-      const w = val ? (header.aq.alpha * Math.max(val[v], 1)) / header.aq.h : 1.0;
-      out[v] = w * scales[level];
+    const s = scales[level];
+    if (val === null) {
+      out.fill(1.0 * s, lod[level], lod[level + 1]);
+      continue;
     }
+    for (let v = lod[level]; v < lod[level + 1]; v++) out[v] = ((alpha * Math.max(val[v], 1)) / h) * s;
   }
   return out;
 }
@@ -90,9 +100,9 @@ export function vertexNormals(p, faces) {
     const ux = p[b] - p[a], uy = p[b + 1] - p[a + 1], uz = p[b + 2] - p[a + 2];
     const vx = p[c] - p[a], vy = p[c + 1] - p[a + 1], vz = p[c + 2] - p[a + 2];
     const nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
-    for (const v of [a, b, c]) {
-      acc[v] += nx; acc[v + 1] += ny; acc[v + 2] += nz;
-    }
+    acc[a] += nx; acc[a + 1] += ny; acc[a + 2] += nz;
+    acc[b] += nx; acc[b + 1] += ny; acc[b + 2] += nz;
+    acc[c] += nx; acc[c + 1] += ny; acc[c + 2] += nz;
   }
   for (let i = 0; i < acc.length; i += 3) {
     const n = Math.sqrt(acc[i] * acc[i] + acc[i + 1] * acc[i + 1] + acc[i + 2] * acc[i + 2]);
@@ -112,10 +122,11 @@ export function vertexNormals(p, faces) {
  */
 function frameToWorld(nx, ny, nz, c0, c1, c2, out, o) {
   if (nx === 0 && ny === 0 && nz === 0) { nx = 0; ny = 0; nz = 1; }
-  const n = [nx, ny, nz];
-  let axis = 0;
-  for (let k = 1; k < 3; k++) if (Math.abs(n[k]) < Math.abs(n[axis])) axis = k;
-  const na = n[axis];
+  // The least aligned axis, the lowest on ties (the Rust fold over k = 1, 2).
+  const ax = Math.abs(nx), ay = Math.abs(ny), az = Math.abs(nz);
+  let axis = ay < ax ? 1 : 0;
+  if (az < (axis === 0 ? ax : ay)) axis = 2;
+  const na = axis === 0 ? nx : axis === 1 ? ny : nz;
   let tx = (axis === 0 ? 1 : 0) - nx * na, ty = (axis === 1 ? 1 : 0) - ny * na, tz = (axis === 2 ? 1 : 0) - nz * na;
   const len = Math.sqrt(tx * tx + ty * ty + tz * tz);
   if (len > 1e-300) {

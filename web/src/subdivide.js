@@ -80,8 +80,11 @@ function splitOnce(s, scheme) {
       mids[k] = n0 + e;
     }
     const f0 = faces[3 * f], f1 = faces[3 * f + 1], f2 = faces[3 * f + 2];
-    const m0 = mids[0], m1 = mids[1], m2 = mids[2];
-    newFaces.set([f0, m0, m2, m0, f1, m1, m2, m1, f2, m0, m1, m2], 12 * f);
+    const m0 = mids[0], m1 = mids[1], m2 = mids[2], o = 12 * f;
+    newFaces[o] = f0; newFaces[o + 1] = m0; newFaces[o + 2] = m2;
+    newFaces[o + 3] = m0; newFaces[o + 4] = f1; newFaces[o + 5] = m1;
+    newFaces[o + 6] = m2; newFaces[o + 7] = m1; newFaces[o + 8] = f2;
+    newFaces[o + 9] = m0; newFaces[o + 10] = m1; newFaces[o + 11] = m2;
   }
   const ne = edges.size;
   const st = new Stencils(n0 + ne, 2 * n0 + 4 * ne);
@@ -183,23 +186,35 @@ function evenLoopStencils(n, faces, st) {
       if (count[e] > 2) pinned[lo] = pinned[hi] = 1;
     }
   }
-  const nb = [];
   for (let v = 0; v < n; v++) {
-    nb.length = 0;
-    for (let j = degree[v]; j < degree[v + 1]; j++) nb.push(ring[j] * 4 + Math.min(ringCount[j], 3));
-    nb.sort((x, y) => x - y);
-    const k = nb.length;
-    const boundary = nb.filter((x) => x % 4 === 1).map((x) => (x - 1) / 4);
-    if (!pinned[v] && k > 0 && boundary.length === 0) {
+    const from = degree[v], to = degree[v + 1], k = to - from;
+    sortRing(ring, ringCount, from, to);
+    let boundaries = 0;
+    for (let j = from; j < to; j++) if (ringCount[j] === 1) boundaries++;
+    if (!pinned[v] && k > 0 && boundaries === 0) {
       const beta = k === 3 ? 3.0 / 16.0 : 3.0 / (8.0 * k);
       st.grow(k + 1);
       st.entry(v, 1.0 - k * beta);
-      for (const x of nb) st.entry((x - (x % 4)) / 4, beta);
+      for (let j = from; j < to; j++) st.entry(ring[j], beta);
       st.end();
-    } else if (!pinned[v] && k > 0 && boundary.length === 2) {
-      st.grow(3); st.entry(v, 0.75); st.entry(boundary[0], 0.125); st.entry(boundary[1], 0.125); st.end();
+    } else if (!pinned[v] && k > 0 && boundaries === 2) {
+      st.grow(3);
+      st.entry(v, 0.75);
+      for (let j = from; j < to; j++) if (ringCount[j] === 1) st.entry(ring[j], 0.125);
+      st.end();
     } else {
       st.push1(v, 1.0);
     }
+  }
+}
+
+/** Insertion sort of ring[from, to) ascending, carrying ringCount along (rings are short). */
+function sortRing(ring, ringCount, from, to) {
+  for (let i = from + 1; i < to; i++) {
+    const r = ring[i], c = ringCount[i];
+    let j = i - 1;
+    for (; j >= from && ring[j] > r; j--) { ring[j + 1] = ring[j]; ringCount[j + 1] = ringCount[j]; }
+    ring[j + 1] = r;
+    ringCount[j + 1] = c;
   }
 }
