@@ -156,7 +156,9 @@ function pause() {
   $('play').textContent = 'Play';
 }
 
-/** Bars per frame: height by bytes, orange for intra, blue for predicted; the current frame marked. */
+/** Bars per frame: height by the square root of the bytes (predicted frames are often a
+ * hundredth of an intra frame with its texture), orange for intra, blue for predicted; the
+ * current frame marked. */
 function drawTimeline() {
   const c = $('timeline');
   const w = (c.width = c.clientWidth), h = c.height;
@@ -166,7 +168,7 @@ function drawTimeline() {
   const most = Math.max(...infos.map((f) => f.bytes + f.textureBytes));
   const bw = w / infos.length;
   infos.forEach((f, i) => {
-    const bh = Math.max(2, ((h - 12) * (f.bytes + f.textureBytes)) / most);
+    const bh = Math.max(2, (h - 12) * Math.sqrt((f.bytes + f.textureBytes) / most));
     g.fillStyle = frames[i] ? (f.type === 'I' ? '#e8913a' : '#4a8fe0') : '#556';
     g.fillRect(i * bw + 0.5, h - bh, Math.max(1, bw - 1), bh);
   });
