@@ -99,9 +99,11 @@ def main() -> int:
     print(table)
     if not a.no_write:
         load = os.getloadavg()[0]
-        write_section("JavaScript decoder", "Decode time per frame, in order, best of "
-                      f"{a.reps} repetitions (default QP, {a.frames} frames per stream; the core through its binding; "
-                      f"load average {load:.1f} when the run ended: other processes shared the cores).\n\n" + table)
+        node = subprocess.run([shutil.which("node"), "--version"], capture_output=True, text=True).stdout.strip()
+        write_section("JavaScript decoder", f"Decode time per frame, in order, best of {a.reps} repetitions (default "
+                      f"QP, {a.frames} frames per stream; the core through its binding; Node {node}; load average "
+                      f"{load:.1f} when the run ended: other processes shared the cores, so single figures move by "
+                      "tens of percent between runs).\n\n" + table)
     return 0
 
 
