@@ -113,7 +113,9 @@ def test_damaged_streams_give_the_same_errors_in_both_decoders(tmp_path):
     assert errors > len(cases) // 2  # most damage is caught, and caught the same way
 
 
-SHARED = ["dancer", "mitch", "horse_gallop", "collision"]
+# Two here (the Node tests, web/test/shared.test.js, take four others): constant face count
+# with changing connectivity, and two components merging.
+SHARED = ["mitch", "collision"]
 
 
 @pytest.mark.skipif(not (SHARED_DATA / "basketball_textured").is_dir(), reason="../shared/data is absent")
