@@ -3,14 +3,14 @@
 // wireframe toggle, a level-of-detail choice, and a timeline of frame types and sizes.
 //
 // Contract for tests: `window.dynmeshPlayer` exposes `state` ({frame, shown (the frame on
-// screen), advanced (frames played), decoded, frames, playing, error, textured, textureNote}) and `seek(i)`, `play()`,
+// screen), faces (its triangles), lod, advanced (frames played), decoded, frames, playing, error, textured, textureNote}) and `seek(i)`, `play()`,
 // `pause()`.
 
 import { Renderer } from './renderer.js';
 import { TexturePlayer } from './video.js';
 
 const $ = (id) => document.getElementById(id);
-const state = { frame: 0, shown: -1, advanced: 0, decoded: 0, frames: 0, playing: false, error: null, textured: false, textureNote: '' };
+const state = { frame: 0, shown: -1, faces: 0, lod: -1, advanced: 0, decoded: 0, frames: 0, playing: false, error: null, textured: false, textureNote: '' };
 const frames = [];
 let infos = [], header = null, fps = 30, token = 0, worker = null, stream = null, texture = null;
 const renderer = new Renderer($('view'));
@@ -70,6 +70,7 @@ function setup(h, frameInfos, lod) {
     setupTexture();
   }
   select.value = String(lod < 0 ? h.schemes.length : lod);
+  state.lod = Number(select.value);
   drawTimeline();
 }
 
@@ -115,7 +116,8 @@ async function show(i) {
   $('label').textContent = `frame ${i} / ${Math.max(0, state.frames - 1)} ${infos[i] ? infos[i].type : ''}`;
   const f = frames[i];
   if (f) {
-    renderer.setMesh(f);
+    // The texture first (decoding may take a while), then mesh and texture together, so that
+    // a frame's geometry never shows with another frame's texture.
     const image = texture && f.uvs ? await texture.image(i) : null;
     state.textured = Boolean(texture && texture.textured);
     state.textureNote = texture ? texture.note : '';
@@ -123,6 +125,7 @@ async function show(i) {
     renderer.setMesh(f);
     renderer.setTexture(image);
     state.shown = i;
+    state.faces = f.faces.length / 3;
   }
   renderer.draw();
   drawTimeline();

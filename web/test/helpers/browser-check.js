@@ -2,7 +2,8 @@
 // browser-check.js URL OUTDIR [--wireframe] [--lod K]: opens the player page at URL in headless
 // Debian Chromium (playwright-core, CHROMIUM or /usr/bin/chromium), waits until every frame is
 // decoded, screenshots frame 0, plays until the frame changed twice, pauses, screenshots
-// again, goes to the last frame, and prints a JSON summary (the page's state and console errors). The
+// again, goes to the last frame, switches
+// to level of detail 0 and screenshots the last frame again, and prints a JSON summary (the page's state and console errors). The
 // pixel checks are the caller's (tests/test_player.py).
 import { chromium } from 'playwright-core';
 import { mkdirSync } from 'node:fs';
@@ -43,6 +44,16 @@ try {
   await page.waitForTimeout(300);
   await page.screenshot({ path: `${out}/frame_last.png` });
   result.final = await page.evaluate(() => ({ ...window.dynmeshPlayer.state, status: document.getElementById('status').textContent }));
+  // The coarsest level of detail: the page decodes the stream again without subdividing.
+  await page.selectOption('#lod', '0');
+  await page.waitForFunction(() => {
+    const s = window.dynmeshPlayer.state;
+    return s.error || (s.lod === 0 && s.decoded === s.frames && s.shown === s.frame);
+  }, null, { timeout: 120000 });
+  await page.evaluate(() => window.dynmeshPlayer.seek(window.dynmeshPlayer.state.frames - 1));
+  await page.waitForTimeout(300);
+  await page.screenshot({ path: `${out}/frame_lod0.png` });
+  result.lod0 = await page.evaluate(() => ({ ...window.dynmeshPlayer.state }));
 } catch (e) {
   result.error = String(e);
 } finally {
