@@ -2,8 +2,8 @@
 
 The page (``web/player/``) fetches the stream and decodes it in the browser with the
 JavaScript decoder (``web/src/``); this module only serves those plain files and the stream
-bytes, so the player works from the installed package alone (the wheel carries ``web/``;
-a source checkout serves the repository's ``web/``). Routes: ``/`` redirects to the page,
+bytes, so the player works from the installed package alone (the wheel carries the files as
+``dynmesh/_web``; in a source checkout that folder holds symlinks to ``web/``). Routes: ``/`` redirects to the page,
 ``/stream.dmsh`` is the stream, ``/info.json`` its name and frame rate, ``/player/*`` and
 ``/src/*`` the files; nothing else is served (no directory listings, no paths outside).
 """
@@ -26,10 +26,10 @@ _TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=
 
 
 def web_root() -> Path:
-    """The directory holding ``src/`` and ``player/``: beside the installed package, or the
-    repository's ``web/`` in a source checkout (editable install)."""
-    here = Path(__file__).resolve().parent
-    for root in (here.parent / "web", here.parents[1] / "web"):
+    """The directory holding ``src/`` and ``player/``: ``dynmesh/_web`` (in the wheel, copies;
+    in a checkout, symlinks to the repository's ``web/``), else the repository's ``web/``."""
+    here = Path(__file__).parent
+    for root in (here / "_web", here.parents[1] / "web"):
         if (root / "src" / "decoder.js").is_file() and (root / "player" / "index.html").is_file():
             return root
     raise FileNotFoundError("the web player's files are missing from this installation (web/src, web/player)")
