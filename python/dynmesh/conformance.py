@@ -1,7 +1,8 @@
 """Conformance vectors: small streams and the hash of every decoded frame, which the Rust
 and JavaScript decoders are both tested against (``tests/vectors``).
 
-``python -m dynmesh.conformance [DIR]`` (default ``tests/vectors``) encodes a handful of
+``python -m dynmesh.conformance [DIR]`` (default ``tests/vectors`` of the current directory:
+run it from the repository root) encodes a handful of
 short streams from the built-in synthetic sequence, one per coding tool (intra and predicted
 frames, predicted through constant topology and through the anchor mesh, each subdivision
 scheme, AQ on and off, normal-only and all-component coefficients, a textured stream), and
@@ -26,7 +27,7 @@ from . import api
 from .mesh import Mesh
 from .synth import synth_sequence
 
-DEFAULT_DIR = Path(__file__).resolve().parents[2] / "tests" / "vectors"
+DEFAULT_DIR = Path("tests") / "vectors"
 
 
 def _warped(m: Mesh, frames: int) -> list[Mesh]:
@@ -36,6 +37,17 @@ def _warped(m: Mesh, frames: int) -> list[Mesh]:
         p = m.positions.copy()
         p[:, 0] += 0.08 * f * np.sin(2.0 * p[:, 1])
         p[:, 2] += 0.05 * f * p[:, 0] ** 2
+        out.append(Mesh(p, m.faces.copy()))
+    return out
+
+
+def _jittered(m: Mesh, frames: int) -> list[Mesh]:
+    """``m`` and strong deformations of it with the same connectivity: large enough that a
+    predicted frame codes its coefficients directly rather than as differences (mode 0)."""
+    rng = np.random.default_rng(1)
+    out = [m]
+    for f in range(1, frames):
+        p = m.positions + 0.04 * rng.standard_normal(m.positions.shape) + 0.1 * f * np.sin(3 * m.positions)
         out.append(Mesh(p, m.faces.copy()))
     return out
 
@@ -75,6 +87,9 @@ def vector_specs() -> list[tuple[str, str, list[Mesh], dict]]:
          changing[:2], dict(small, scheme="loop", intra_period=1, aq=True, aq_delta=0.25, normal_only=False)),
         ("constant_loop_noaq", "I + P on constant topology, Loop, no AQ, normal only, three iterations",
          constant, dict(small, subdiv=3, scheme="loop", aq=False)),
+        ("constant_jitter_mode0", "I + P on constant topology with strong motion: the last P frame codes its "
+         "coefficients directly (coefficient mode 0), the other as differences (mode 1)",
+         _jittered(changing[0], 3), dict(small, scheme="midpoint", rd_slope=100.0)),
         ("textured_mixed", "textured (UV atlas, AV1 texture video), I + P, mixed schemes",
          _textured(constant[:2]), dict(small, scheme="mixed", texture_size=64, texture_codec="av1", texture_qp=40)),
     ]

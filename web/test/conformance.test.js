@@ -5,6 +5,7 @@ import assert from 'node:assert/strict';
 import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
 import { Decoder } from '../src/index.js';
+import { readPayload } from '../src/decoder.js';
 import { frameHash } from '../src/hash.js';
 import { frameUvs } from '../src/texture.js';
 import { createHash } from 'node:crypto';
@@ -46,6 +47,15 @@ for (const [stream, levels] of Object.entries(uvManifest)) {
     }
   });
 }
+
+test('the vectors hold intra frames and predicted frames of both coefficient modes', () => {
+  const kinds = new Set();
+  for (const stream of Object.keys(manifest)) {
+    const dec = new Decoder(new Uint8Array(readFileSync(DIR + stream)));
+    dec.units.forEach((u, i) => kinds.add(u.type === 0 ? 'I' : `P${readPayload(dec.data, u, i).coefficientsPredicted ? 1 : 0}`));
+  }
+  assert.deepEqual([...kinds].sort(), ['I', 'P0', 'P1']);
+});
 
 test('an untextured stream has no UVs', () => {
   const dec = new Decoder(new Uint8Array(readFileSync(DIR + 'anchor_mixed_aq.dmsh')));
