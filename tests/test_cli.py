@@ -62,7 +62,7 @@ def test_start_and_count_select_frames(tmp_path, frames_dir):
 
 
 def test_every_command_has_help():
-    for cmd in ["encode", "decode", "info", "metrics", "synth", "demo", "eval"]:
+    for cmd in ["encode", "decode", "info", "metrics", "synth", "demo", "eval", "play"]:
         assert "usage" in run(cmd, "--help").stdout
 
 
@@ -127,3 +127,36 @@ def test_shared_sequence_quality_rises_as_qp_falls(tmp_path):
         raw = sum(p.stat().st_size for p in sorted(folder.iterdir())[:2])
         assert stream.stat().st_size * 50 < raw
     assert psnr[1] > psnr[0] + 2
+
+
+def test_decode_hash_and_lod_options(tmp_path, frames_dir):
+    stream = tmp_path / "s.dmsh"
+    run("encode", frames_dir, "-o", stream, "-q", "--subdiv", "2")
+    full = run("decode", stream, "--hash").stdout.splitlines()
+    assert [line.split()[:3] for line in full] == [["frame", str(i), "sha256"] for i in range(3)]
+    assert all(len(line.split()[3]) == 64 for line in full)
+    assert run("decode", stream, "--hash", "--lod", "2").stdout.splitlines() == full  # 2 = all iterations
+    coarse = run("decode", stream, "--hash", "--lod", "0").stdout.splitlines()
+    assert coarse != full
+    # --hash beside -o writes the files and prints the same lines; JSON carries them too.
+    out = tmp_path / "out"
+    assert run("decode", stream, "--hash", "-o", out, "-q").stdout.splitlines() == full
+    assert len(list(out.glob("frame_*.obj"))) == 3
+    doc = json.loads(run("decode", stream, "--hash", "--json", "--lod", "0").stdout)
+    assert [f"frame {i} sha256 {h}" for i, h in enumerate(doc["sha256"])] == coarse
+    lod0 = read_mesh(next(iter(sorted(out.glob("*.obj")))))
+    run("decode", stream, "-o", tmp_path / "lod0", "--lod", "0", "-q")
+    assert len(read_mesh(tmp_path / "lod0" / "frame_0000.obj").faces) * 16 == len(lod0.faces)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--lod", "3"], "level of detail 3 out of range (the stream has 2 subdivision iterations)"),
+    (["--lod", "-1"], "expected a non-negative integer"),
+    ([], "give an output directory (-o) or --hash"),
+])
+def test_bad_decode_options_fail_in_one_line(tmp_path, frames_dir, args, message):
+    stream = tmp_path / "s.dmsh"
+    run("encode", frames_dir, "-o", stream, "-q", "--subdiv", "2")
+    extra = ["--hash"] if args and args[0] == "--lod" else []
+    p = run("decode", stream, *extra, *args, check=False)
+    assert p.returncode != 0 and message in p.stderr and "Traceback" not in p.stderr, p.stderr

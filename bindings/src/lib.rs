@@ -205,15 +205,25 @@ impl Decoder {
     /// `tolerant`: open a stream with damaged frame units (only the header must be intact);
     /// `damage()` lists them and decoding a frame that depends on one fails.
     #[new]
-    #[pyo3(signature = (data, tolerant=false))]
-    fn new(data: &[u8], tolerant: bool) -> PyResult<Self> {
+    #[pyo3(signature = (data, tolerant=false, lod=None))]
+    fn new(data: &[u8], tolerant: bool, lod: Option<u32>) -> PyResult<Self> {
         let open = if tolerant { decoder::Decoder::new_tolerant } else { decoder::Decoder::new };
-        Ok(Self { inner: open(data.to_vec()).map_err(decode_error)? })
+        let mut inner = open(data.to_vec()).map_err(decode_error)?;
+        if let Some(lod) = lod {
+            inner.set_lod(lod).map_err(pyo3::exceptions::PyValueError::new_err)?;
+        }
+        Ok(Self { inner })
     }
 
     /// The damaged frame units: [(frame, start offset, end offset, reason)].
     fn damage(&self) -> Vec<(u32, u64, u64, String)> {
         self.inner.damage().into_iter().map(|(f, d)| (f, d.start, d.end, d.reason.clone())).collect()
+    }
+
+    /// Subdivision iterations decoded (the level of detail).
+    #[getter]
+    fn lod(&self) -> u32 {
+        self.inner.lod()
     }
 
     #[getter]

@@ -4,6 +4,11 @@
 //! encoder calls it too, which is what makes the two agree bit for bit. Predicted frames
 //! take their base mesh from the frame they name, so [`Decoder`] walks back to the intra
 //! frame that starts the chain (seeking) and keeps the last base mesh it made.
+//!
+//! Level-of-detail decoding ([`Decoder::set_lod`]) stops after K of the stream's
+//! subdivision iterations: each frame is subdivided K times, the coefficients of the levels
+//! beyond K are not read (they come last in the block) and count as zero, and the frame is
+//! reconstructed on the level-K mesh. At K = all iterations nothing changes.
 
 use crate::basecoder;
 use crate::bitstream::{self, FrameType, Reader, SequenceHeader, Unit};
@@ -80,6 +85,8 @@ pub struct Decoder {
     header: SequenceHeader,
     slots: Vec<FrameSlot>,
     last: Option<(u32, State)>,
+    /// Subdivision iterations decoded (at most the stream's).
+    lod: u32,
 }
 
 impl Decoder {
@@ -97,7 +104,8 @@ impl Decoder {
                 texture: u.texture.map_or(TextureSlot::None, |(t, o)| TextureSlot::Intact(o as usize, t.len())),
             })
             .collect();
-        Ok(Self { header, slots, data, last: None })
+        let lod = header.subdiv_iterations();
+        Ok(Self { header, slots, data, last: None, lod })
     }
 
     /// Opens a stream whose frame units may be damaged (see [`resync`]): only the sequence
@@ -107,13 +115,33 @@ impl Decoder {
         let (header, start) = bitstream::read_header(&data)?;
         bitstream::check_frame_count(&data, start, header.frame_count)?;
         let slots = resync::scan_units(&data, start, header.frame_count);
-        Ok(Self { header, slots, data, last: None })
+        let lod = header.subdiv_iterations();
+        Ok(Self { header, slots, data, last: None, lod })
     }
 
     /// The damaged frame units, by frame: (frame, where the damage is, why).
     pub fn damage(&self) -> Vec<(u32, &Damage)> {
         let slots = self.slots.iter().enumerate();
         slots.filter_map(|(i, s)| if let FrameSlot::Damaged(d) = s { Some((i as u32, d)) } else { None }).collect()
+    }
+
+    /// Decode only `lod` subdivision iterations from now on (0 = the base mesh with its
+    /// displacements; the stream's iteration count = full detail). Forgets the cached frame,
+    /// whose coefficients were decoded for another level. Errors if `lod` exceeds the
+    /// stream's iterations.
+    pub fn set_lod(&mut self, lod: u32) -> Result<(), String> {
+        let most = self.header.subdiv_iterations();
+        if lod > most {
+            return Err(format!("level of detail {lod} out of range (the stream has {most} subdivision iterations)"));
+        }
+        self.lod = lod;
+        self.last = None;
+        Ok(())
+    }
+
+    /// Subdivision iterations decoded.
+    pub fn lod(&self) -> u32 {
+        self.lod
     }
 
     pub fn header(&self) -> &SequenceHeader {
@@ -231,7 +259,7 @@ impl Decoder {
             let reason = format!("base mesh of {} faces cannot be subdivided {} times", faces.len(), h.subdiv_iterations());
             return Err(error(p.base_offset, &reason));
         }
-        let sub = subdivided_base(h, &positions, &faces);
+        let sub = subdivide(&base_in_grid_units(h, &positions), &faces, &h.schemes[..self.lod as usize]);
         let mut dec = ec::Decoder::new(p.coefficients);
         let mut coefficients = coefcoder::decode(&mut dec, h.components as usize, &sub)
             .ok_or_else(|| error(p.coefficients_offset, "displacement data is truncated or corrupt"))?;

@@ -164,31 +164,32 @@ def encode(frames: Iterable, **options) -> bytes:
     return encode_frames(frames, **options).data
 
 
-def _open(data: bytes, tolerant: bool = False) -> _core.Decoder:
+def _open(data: bytes, tolerant: bool = False, lod: int | None = None) -> _core.Decoder:
     try:
-        return _core.Decoder(bytes(data), tolerant)
+        return _core.Decoder(bytes(data), tolerant, lod)
     except _core.DecodeError as e:
         raise DecodeError(*e.args) from None
 
 
-def decode(data: bytes) -> Iterator[Mesh]:
+def decode(data: bytes, lod: int | None = None) -> Iterator[Mesh]:
     """Yields the decoded frames of a stream, in order; frames of a textured stream carry
-    their UVs and texture image. Raises DecodeError."""
-    for _, mesh in _decode_frames(_open(data), tolerant=False):
+    their UVs and texture image. ``lod`` stops after that many subdivision iterations
+    (default: all of the stream's). Raises DecodeError, or ValueError for a bad ``lod``."""
+    for _, mesh in _decode_frames(_open(data, lod=lod), tolerant=False):
         if isinstance(mesh, DecodeError):
             raise mesh
         yield mesh
 
 
-def decode_each(data: bytes) -> Iterator[tuple[int, Mesh | DecodeError]]:
+def decode_each(data: bytes, lod: int | None = None) -> Iterator[tuple[int, Mesh | DecodeError]]:
     """Yields ``(index, Mesh)`` for every frame of a possibly damaged stream whose reference
     chain (and texture unit) is intact, and ``(index, DecodeError)`` for the others, in
     order. Only the sequence header must be intact (else DecodeError is raised)."""
-    return _decode_frames(_open(data, tolerant=True), tolerant=True)
+    return _decode_frames(_open(data, tolerant=True, lod=lod), tolerant=True)
 
 
 def _decode_frames(dec: _core.Decoder, tolerant: bool) -> Iterator[tuple[int, Mesh | DecodeError]]:
-    tex = _texture.TextureDecoder(dec, int(dec.header()["subdiv_iterations"]), tolerant)
+    tex = _texture.TextureDecoder(dec, dec.lod, tolerant)
     textured = tex.textured()
     for i in range(dec.frame_count):
         try:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import sys
 import tempfile
@@ -111,40 +112,73 @@ def cmd_encode(a) -> dict:
 
 
 def cmd_decode(a) -> dict:
+    from .conformance import frame_hash
+
     data = _read_bytes(a.input)
-    refuse_inputs(a.output, [a.input], "output directory")
+    if a.output is None and not a.hash:
+        raise CliError("give an output directory (-o) or --hash")
+    if a.output is not None:
+        refuse_inputs(a.output, [a.input], "output directory")
     stream = api.info(data)
     n = stream["header"]["frame_count"]
     if stream["damaged"] and not a.skip_damaged:
         d = stream["damaged"][0]
         raise CliError(f"{a.input}: frame {d['frame']}, byte offset {d['offset']}: {d['reason']} "
                        f"({len(stream['damaged'])} damaged frame(s); --skip-damaged decodes the others)")
-    written, damaged = [], []
+    written, damaged, hashes = [], [], []
     start = time.perf_counter()
-    with StagedDirectory(a.output) as out, _progress(n, "decoding", a.quiet) as bar:
-        for i, mesh in (api.decode_each(data) if a.skip_damaged else enumerate(api.decode(data))):
+    frames = api.decode_each(data, lod=a.lod) if a.skip_damaged else enumerate(api.decode(data, lod=a.lod))
+    with _staged_or_none(a.output) as out, _progress(n, "decoding", a.quiet or (a.hash and not a.json)) as bar:
+        for i, mesh in frames:
             if isinstance(mesh, api.DecodeError):
                 damaged.append({"frame": i, "offset": mesh.offset, "reason": str(mesh)})
             else:
-                name = f"frame_{i:04d}.{a.format}"
-                refuse_inputs(out.final(name), [a.input])
-                write_mesh(out.path(name), mesh)
-                written.append(str(out.final(name)))
+                if a.hash:
+                    hashes.append(frame_hash(mesh))
+                    if not a.json:
+                        print(f"frame {i} sha256 {hashes[-1]}", flush=True)
+                if out is not None:
+                    name = f"frame_{i:04d}.{a.format}"
+                    refuse_inputs(out.final(name), [a.input])
+                    _write_frame(out.path(name), mesh)
+                    written.append(str(out.final(name)))
             bar.update()
-        if not written:
+        if not written and not hashes:
             raise CliError(f"no frame of {a.input} decodes" + (f" (first: {damaged[0]['reason']})" if damaged else ""))
-        for extra in (".mtl", ".png"):  # textured frames' companions, beside them
-            for w in written:
-                refuse_inputs(Path(w).with_suffix(extra), [a.input])
-        out.commit()
+        if out is not None:
+            for extra in (".mtl", ".png"):  # textured frames' companions, beside them
+                for w in written:
+                    refuse_inputs(Path(w).with_suffix(extra), [a.input])
+            out.commit()
     seconds = time.perf_counter() - start
-    if not a.json:
+    if not a.json and a.output is not None and not a.hash:
         print(f"decoded {len(written)} frames into {a.output} in {seconds:.2f} s")
     for d in damaged:
         print(f"dynmesh decode: frame {d['frame']} (byte {d['offset']}) skipped: {d['reason']}", file=sys.stderr)
     if damaged:
         a.failure = f"{len(damaged)} of {n} frames are damaged or depend on damaged data; decoded the other {len(written)}"
-    return {"frames": written, "seconds": seconds, "damaged": damaged}
+    return {"frames": written, "seconds": seconds, "damaged": damaged, **({"sha256": hashes} if a.hash else {})}
+
+
+def _staged_or_none(output):
+    """A staged output directory, or nothing to write into (``--hash`` alone)."""
+    return contextlib.nullcontext() if output is None else StagedDirectory(output)
+
+
+def _write_frame(path: Path, mesh) -> Path:
+    if path.suffix == ".glb":
+        from .gltf import glb_bytes
+
+        api.write_bytes_atomic(path, glb_bytes(mesh, path.stem))
+    else:
+        write_mesh(path, mesh)
+    return path
+
+
+def cmd_play(a) -> dict:
+    from .player import serve
+
+    return serve(a.input, port=a.port, open_browser=not a.no_browser, quiet=a.quiet or a.json, fps=a.fps)
 
 
 def cmd_info(a) -> dict:
@@ -306,6 +340,16 @@ def _read_bytes(path: str) -> bytes:
         raise CliError(f"cannot read {path}: {e.strerror}") from None
 
 
+def _non_negative(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return v
+
+
 def _sequence_args(p):
     p.add_argument("--start", type=int, help="first frame (index into the sorted list, or number for a printf pattern)")
     p.add_argument("--count", type=int, help="number of frames")
@@ -375,14 +419,30 @@ def parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("decode", help="decode a stream into mesh files", description="Decode a .dmsh stream into frame_0000.obj, ...")
     p.add_argument("input")
-    p.add_argument("-o", "--output", required=True, help="output directory")
-    p.add_argument("--format", choices=["obj", "ply"], default="obj",
-                   help="obj (with .mtl and .png when the stream is textured) or ply (geometry only)")
+    p.add_argument("-o", "--output", help="output directory (optional with --hash)")
+    p.add_argument("--format", choices=["obj", "ply", "glb"], default="obj",
+                   help="obj (with .mtl and .png when the stream is textured), ply (geometry only) or glb "
+                        "(glTF 2.0 binary with normals, and UVs and the texture image when textured)")
     p.add_argument("--skip-damaged", action="store_true",
                    help="decode every frame whose reference chain is intact, report the others (frame number "
                         "and byte offset) and exit with status 1; without it a damaged stream is an error")
+    p.add_argument("--hash", action="store_true",
+                   help="print 'frame N sha256 HEX' per frame: SHA-256 of the positions as little-endian float64, "
+                        "then the faces as little-endian uint32 (as web/bin/dynmesh-decode.js --hash)")
+    p.add_argument("--lod", type=_non_negative, metavar="K",
+                   help="level of detail: stop after K subdivision iterations (default: all of the stream's)")
     _common(p)
     p.set_defaults(run=cmd_decode)
+
+    p = sub.add_parser("play", help="play a stream in the browser",
+                       description="Serve a web player for a .dmsh stream on 127.0.0.1: the page decodes the stream "
+                                   "in the browser with the JavaScript decoder and plays it.")
+    p.add_argument("input")
+    p.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (default 8765; 0 = any free port)")
+    p.add_argument("--no-browser", action="store_true", help="only serve; do not open a browser")
+    p.add_argument("--fps", type=float, default=30.0, help="frame rate (the stream does not carry one; default 30)")
+    _common(p)
+    p.set_defaults(run=cmd_play)
 
     p = sub.add_parser("info", help="show headers and per-frame sizes of a stream")
     p.add_argument("input")

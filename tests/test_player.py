@@ -1,0 +1,154 @@
+"""dynmesh play: the server's routes, and the page in headless Chromium (Debian's chromium,
+driven by playwright-core from web/node_modules; .ci/run installs both): it decodes a stream
+of the built-in synthetic sequence in the browser, and its screenshots show frames that
+render (pixels off the background) and change while it plays."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from dynmesh import api
+from dynmesh.player import make_server, web_root
+from dynmesh.conformance import _textured
+from dynmesh.synth import synth_sequence
+
+ROOT = Path(__file__).resolve().parents[1]
+CHECK = ROOT / "web" / "test" / "helpers" / "browser-check.js"
+CHROMIUM = os.environ.get("CHROMIUM", "/usr/bin/chromium")
+BACKGROUND = np.array([32, 36, 43])  # the renderer's clear colour
+VIEW_ROWS = 384  # of the 480-row screenshot; the panel is below
+
+
+@pytest.fixture(scope="module")
+def stream(tmp_path_factory) -> Path:
+    path = tmp_path_factory.mktemp("play") / "synth.dmsh"
+    path.write_bytes(api.encode(synth_sequence(frames=40, resolution=20)[:8], qp=30))
+    return path
+
+
+def textured_stream(tmp_path: Path, codec: str) -> Path:
+    """Six frames of the synthetic sequence with spherical UVs and a texture, coded with
+    ``codec`` (av1 or hevc)."""
+    path = tmp_path / f"textured_{codec}.dmsh"
+    frames = _textured(synth_sequence(frames=40, resolution=20)[:6])
+    path.write_bytes(api.encode(frames, qp=30, texture_size=128, texture_codec=codec, texture_qp=30))
+    return path
+
+
+def test_the_server_serves_the_page_the_decoder_and_the_stream_and_nothing_else(stream):
+    import threading
+
+    server = make_server(stream.read_bytes(), stream.name)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    base = f"http://127.0.0.1:{server.server_address[1]}"
+    try:
+        get = lambda p: urllib.request.urlopen(base + p, timeout=10)  # noqa: E731
+        assert get("/stream.dmsh").read() == stream.read_bytes()
+        assert json.loads(get("/info.json").read())["fps"] == 30.0
+        page = get("/").read().decode()  # redirected to the page
+        assert "player.js" in page
+        js = get("/src/decoder.js")
+        assert js.headers["Content-Type"].startswith("text/javascript")
+        for bad in ("/src/../../pyproject.toml", "/player/", "/web/src/decoder.js", "/src/%2e%2e/package.json"):
+            with pytest.raises(urllib.error.HTTPError) as e:
+                get(bad)
+            assert e.value.code == 404, bad
+    finally:
+        server.shutdown()
+        server.server_close()
+    assert (web_root() / "player" / "index.html").is_file()
+
+
+def test_play_reports_a_damaged_stream_in_one_line(tmp_path):
+    bad = tmp_path / "bad.dmsh"
+    bad.write_bytes(b"DMSH\x02" + bytes(80))
+    r = subprocess.run([sys.executable, "-m", "dynmesh", "play", str(bad), "--no-browser"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and r.stderr.count("\n") == 1 and "CRC" in r.stderr, r.stderr
+
+
+def view_pixels(path: Path) -> np.ndarray:
+    return np.asarray(Image.open(path).convert("RGB"), np.int16)[:VIEW_ROWS]
+
+
+def drawn_fraction(img: np.ndarray) -> float:
+    return float(np.mean(np.abs(img - BACKGROUND).sum(axis=2) > 30))
+
+
+def in_browser(stream: Path, out: Path, *extra: str) -> dict:
+    """Serves ``stream`` with ``dynmesh play --no-browser`` and runs browser-check.js on it."""
+    if not Path(CHROMIUM).exists():
+        pytest.fail(f"no Chromium at {CHROMIUM}: install Debian's chromium (.ci/run does)")
+    if not (ROOT / "web" / "node_modules" / "playwright-core").is_dir():
+        pytest.fail("playwright-core is not installed: run `npm ci` in web/")
+    server = subprocess.Popen([sys.executable, "-m", "dynmesh", "play", str(stream), "--no-browser", "--port", "0"],
+                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        url = re.search(r"http://127\.0\.0\.1:\d+/", server.stdout.readline()).group(0)
+        run = subprocess.run([shutil.which("node"), str(CHECK), url, str(out), *extra], capture_output=True, text=True, timeout=300)
+    finally:
+        server.terminate()
+        server.wait(timeout=30)
+    assert run.returncode == 0, run.stderr
+    result = json.loads(run.stdout.splitlines()[-1])
+    assert "error" not in result, result
+    return result
+
+
+def colourfulness(img: np.ndarray) -> float:
+    """Mean channel spread of the drawn pixels: the untextured shading is grey (near 0)."""
+    drawn = np.abs(img - BACKGROUND).sum(axis=2) > 30
+    return float((img.max(axis=2) - img.min(axis=2))[drawn].mean())
+
+
+def test_the_page_plays_the_stream_in_headless_chromium(stream, tmp_path):
+    result = in_browser(stream, tmp_path)
+    assert result["loaded"]["error"] is None and result["loaded"]["decoded"] == 8
+    assert result["console"] == [], result["console"]
+    assert result["paused"]["advanced"] >= 2 and not result["paused"]["playing"]
+    assert result["pausedLater"]["frame"] == result["paused"]["frame"]  # paused means paused
+    assert result["final"]["frame"] == 7
+    # Level of detail 0: the base meshes, 4^3 times fewer faces than the full level.
+    assert result["lod0"]["lod"] == 0 and result["lod0"]["error"] is None
+    assert result["lod0"]["faces"] * 64 == result["final"]["faces"]
+    assert drawn_fraction(view_pixels(tmp_path / "frame_lod0.png")) > 0.02
+    first, played, last = (view_pixels(tmp_path / f"frame_{n}.png") for n in ("first", "played", "last"))
+    for img in (first, played, last):
+        assert drawn_fraction(img) > 0.02  # the mesh covers part of the view
+    # The blobs move and merge: the frames differ where the mesh is (the played one when
+    # playing stopped elsewhere than frame 0: 30 fps may have wrapped the 8 frames round).
+    changed = lambda a, b: np.mean(np.abs(a - b).sum(axis=2) > 30) > 0.005  # noqa: E731
+    assert changed(first, last)
+    assert changed(first, played) == (result["pausedLater"]["shown"] != 0)
+    # 30 fps: two frame changes take a few tenths of a second, not seconds.
+    assert result["playSeconds"] < 5
+
+
+def test_an_av1_textured_stream_plays_with_its_texture(tmp_path):
+    result = in_browser(textured_stream(tmp_path, "av1"), tmp_path)
+    assert result["final"]["textured"] and result["final"]["textureNote"] == "AV1 texture", result["final"]
+    assert result["console"] == []
+    for name in ("first", "last"):
+        img = view_pixels(tmp_path / f"frame_{name}.png")
+        assert drawn_fraction(img) > 0.02
+        assert colourfulness(img) > 25, name
+
+
+def test_an_hevc_textured_stream_says_so_and_plays_the_geometry(tmp_path):
+    result = in_browser(textured_stream(tmp_path, "hevc"), tmp_path, "--wireframe")
+    final = result["final"]
+    assert not final["textured"] and "HEVC texture cannot be decoded by this browser" in final["textureNote"]
+    assert "HEVC texture cannot be decoded" in final["status"]
+    img = view_pixels(tmp_path / "frame_last.png")
+    assert drawn_fraction(img) > 0.02 and final["frame"] == 5

@@ -1,0 +1,72 @@
+// Decoding off the page's thread: decodes every frame of a stream in order at one level of
+// detail and posts each as it is done (float32 positions relative to the grid centre, vertex
+// normals, faces; and, for textured streams, the frame's UVs unwelded per corner).
+//
+// Messages in: {stream: ArrayBuffer, lod, token}. Out: {token, header, infos}, then
+// {token, frame}, per frame, then {token, done}; or {token, error} with the decoder's message.
+
+import { Decoder } from '../src/decoder.js';
+import { frameUvs } from '../src/texture.js';
+
+self.onmessage = (event) => {
+  const { stream, lod, token } = event.data;
+  try {
+    const dec = new Decoder(new Uint8Array(stream), { lod });
+    const h = dec.header;
+    const infos = Array.from({ length: dec.frameCount }, (_, i) => dec.frameInfo(i));
+    const half = (2 ** h.bits - 1) / 2;
+    const centre = h.origin.map((o) => o + half * h.step);
+    self.postMessage({ token, header: { ...h, centre, extent: 2 * half * h.step }, infos });
+    const uvs = frameUvs(dec);
+    for (let i = 0; i < dec.frameCount; i++) {
+      const f = dec.decodeFrame(i);
+      const frame = renderable(f, centre);
+      frame.index = i;
+      const uv = uvs(i);
+      if (uv) Object.assign(frame, unweld(frame, uv));
+      const transfer = [frame.positions.buffer, frame.normals.buffer, frame.faces.buffer];
+      if (frame.uvs) transfer.push(frame.uvs.buffer);
+      self.postMessage({ token, frame }, transfer);
+    }
+    self.postMessage({ token, done: true });
+  } catch (e) {
+    self.postMessage({ token, error: e.message });
+  }
+};
+
+/** Float32 positions around `centre`, unit vertex normals and the faces of a decoded frame. */
+function renderable(f, centre) {
+  const n = f.positions.length / 3;
+  const positions = new Float32Array(3 * n);
+  for (let i = 0; i < 3 * n; i++) positions[i] = f.positions[i] - centre[i % 3];
+  const normals = new Float32Array(3 * n);
+  const p = f.positions, faces = f.faces;
+  for (let t = 0; t < faces.length; t += 3) {
+    const a = 3 * faces[t], b = 3 * faces[t + 1], c = 3 * faces[t + 2];
+    const ux = p[b] - p[a], uy = p[b + 1] - p[a + 1], uz = p[b + 2] - p[a + 2];
+    const vx = p[c] - p[a], vy = p[c + 1] - p[a + 1], vz = p[c + 2] - p[a + 2];
+    const nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+    for (const v of [a, b, c]) { normals[v] += nx; normals[v + 1] += ny; normals[v + 2] += nz; }
+  }
+  for (let i = 0; i < 3 * n; i += 3) {
+    const l = Math.hypot(normals[i], normals[i + 1], normals[i + 2]) || 1;
+    normals[i] /= l; normals[i + 1] /= l; normals[i + 2] /= l;
+  }
+  return { positions, normals, faces: new Uint32Array(faces), type: f.type };
+}
+
+/** One vertex per face corner, so that a UV seam can split a vertex (WebGL has one index list). */
+function unweld(frame, { uv, uvFaces }) {
+  const m = frame.faces.length;
+  const positions = new Float32Array(3 * m), normals = new Float32Array(3 * m), uvs = new Float32Array(2 * m);
+  for (let c = 0; c < m; c++) {
+    const v = frame.faces[c], t = uvFaces[c];
+    positions.set(frame.positions.subarray(3 * v, 3 * v + 3), 3 * c);
+    normals.set(frame.normals.subarray(3 * v, 3 * v + 3), 3 * c);
+    uvs[2 * c] = uv[2 * t];
+    uvs[2 * c + 1] = 1 - uv[2 * t + 1];
+  }
+  const faces = new Uint32Array(m);
+  for (let c = 0; c < m; c++) faces[c] = c;
+  return { positions, normals, uvs, faces };
+}

@@ -1,0 +1,199 @@
+// The decoder (`core/src/decoder.rs`): a checked stream whose frames decode in any order.
+//
+// Contract: `new Decoder(bytes, {lod})` checks the header and every unit's CRC up front, as
+// the Rust `Decoder::new` does; `decodeFrame(i)` returns frame i's positions (flat float64
+// xyz) and faces (flat uint32) bit for bit as the Rust decoder at the same level of detail,
+// or throws a DecodeError with the Rust message. A predicted frame is decoded from the intra
+// frame that starts its chain, or from the last decoded frame when that is on the chain.
+// `lod` (0 ..= subdivision iterations, default all) stops after that many subdivisions:
+// coefficients of finer levels are not read, and the frame is reconstructed without them.
+
+import { readHeader, readUnits, Reader, INTRA, PREDICTED } from './container.js';
+import { DecodeError } from './errors.js';
+import { RangeDecoder } from './ec.js';
+import { decodeBase } from './basecoder.js';
+import { decodeMotion } from './motion.js';
+import { decodeCoefficients } from './coefcoder.js';
+import { subdivide } from './subdivide.js';
+import { reconstruct } from './reconstruct.js';
+
+export const MAX_OUTPUT_FACES = 2 ** 25;
+export const FACES_PER_UNIT_BYTE = 512;
+export const MIN_FACE_ALLOWANCE = 2 ** 20;
+const QP_MIN = -24, QP_MAX = 63;
+
+/** The most output faces a frame unit of `bytes` payload bytes may decode to. */
+export function faceAllowance(bytes) {
+  return Math.min(Math.max(bytes * FACES_PER_UNIT_BYTE, MIN_FACE_ALLOWANCE), MAX_OUTPUT_FACES);
+}
+
+/**
+ * @typedef {object} Frame
+ * @property {Float64Array} positions flat xyz in the input's units
+ * @property {Uint32Array} faces flat triangles
+ * @property {number} type 0 intra, 1 predicted
+ */
+
+export class Decoder {
+  /**
+   * @param {Uint8Array} data the whole stream
+   * @param {{lod?: number}} [options]
+   */
+  constructor(data, options = {}) {
+    this.data = data;
+    this.header = readHeader(data);
+    this.units = readUnits(data, this.header);
+    const s = this.header.schemes.length;
+    const lod = options.lod ?? s;
+    if (!Number.isInteger(lod) || lod < 0 || lod > s) throw new RangeError(`level of detail ${lod} out of range (the stream has ${s} subdivision iterations)`);
+    this.lod = lod;
+    /** @type {{index:number, state:object}|null} */
+    this.last = null;
+  }
+
+  get frameCount() {
+    return this.units.length;
+  }
+
+  /** Type, reference, QP and sizes of frame `index` (`Decoder::frame_info`). */
+  frameInfo(index) {
+    const u = this.unit(index);
+    const p = readPayload(this.data, u, index);
+    return {
+      type: u.type === INTRA ? 'I' : 'P',
+      reference: u.type === PREDICTED ? index - p.referenceDistance : null,
+      qp: p.qp,
+      bytes: u.length + 9,
+      baseBytes: p.base.length,
+      displacementBytes: p.coefficients.length,
+      textureBytes: u.texture ? u.texture.length : 0,
+    };
+  }
+
+  /** The payload of frame `index`'s texture unit, or null. */
+  texturePayload(index) {
+    const t = this.unit(index).texture;
+    return t ? this.data.subarray(t.offset, t.offset + t.length) : null;
+  }
+
+  unit(index) {
+    if (!(index >= 0 && index < this.units.length)) throw new DecodeError(index, 0, 'no such frame');
+    return this.units[index];
+  }
+
+  /**
+   * Decodes frame `index`.
+   * @param {number} index
+   * @returns {Frame}
+   */
+  decodeFrame(index) {
+    const chain = [index];
+    for (;;) {
+      const f = chain[chain.length - 1];
+      if (chain.length > 1 && this.last !== null && this.last.index === f) break;
+      const u = this.unit(f);
+      if (u.type === INTRA) break;
+      chain.push(f - readPayload(this.data, u, f).referenceDistance);
+    }
+    let reference = null;
+    for (let i = chain.length - 1; i >= 1; i--) {
+      const f = chain[i];
+      if (reference === null && this.last !== null && this.last.index === f) reference = this.last.state;
+      else reference = this.decodeState(f, reference).state;
+    }
+    const { state, sub, qp } = this.decodeState(index, reference);
+    const positions = reconstruct(this.header, sub, state.coefficients, qp);
+    this.last = { index, state };
+    return { positions, faces: sub.faces, type: this.units[index].type };
+  }
+
+  /** The base mesh of the frame decoded last, in the input's units: the texture atlas of an
+   * intra frame is coded on it (`Decoder::last_base`). */
+  lastBase() {
+    if (this.last === null) return null;
+    const h = this.header, s = this.last.state;
+    const step = 2 ** (h.bits - h.baseBits);
+    const p = new Float64Array(s.positions.length);
+    for (let i = 0; i < p.length; i++) p[i] = h.origin[i % 3] + (0.0 + s.positions[i] * step) * h.step;
+    return { index: this.last.index, positions: p, faces: s.faces };
+  }
+
+  decodeState(f, reference) {
+    const u = this.unit(f);
+    const p = readPayload(this.data, u, f);
+    const h = this.header;
+    let positions, faces;
+    if (u.type === INTRA) {
+      try {
+        ({ positions, faces } = decodeBase(p.base, h.baseBits));
+      } catch (e) {
+        throw new DecodeError(f, p.baseOffset, `base mesh: ${e.message}`);
+      }
+    } else if (reference !== null) {
+      positions = decodeMotion(new RangeDecoder(p.base), reference.positions, reference.faces, h.baseBits);
+      if (positions === null) throw new DecodeError(f, p.baseOffset, 'base mesh motion is truncated or corrupt');
+      faces = reference.faces;
+    } else {
+      throw new DecodeError(f, p.baseOffset, 'predicted frame without its reference');
+    }
+    const nf = faces.length / 3;
+    const s = h.schemes.length;
+    if (nf === 0 || nf * 4 ** s > faceAllowance(u.length)) {
+      throw new DecodeError(f, p.baseOffset, `base mesh of ${nf} faces cannot be subdivided ${s} times`);
+    }
+    const sub = subdividedBase(h, positions, faces, this.lod);
+    let q = decodeCoefficients(new RangeDecoder(p.coefficients), h.components, sub);
+    if (q === null) throw new DecodeError(f, p.coefficientsOffset, 'displacement data is truncated or corrupt');
+    if (p.coefficientsPredicted) {
+      q = addCoefficients(q, reference.coefficients);
+      if (q === null) throw new DecodeError(f, p.coefficientsOffset, 'predicted displacements do not match their reference');
+    }
+    return { state: { positions, faces, coefficients: q }, sub, qp: p.qp };
+  }
+}
+
+/** Subdivision of a base mesh on the base grid, `lod` iterations of the header's schemes. */
+export function subdividedBase(h, positions, faces, lod) {
+  const step = 2 ** (h.bits - h.baseBits);
+  const p = new Float64Array(positions.length);
+  for (let i = 0; i < p.length; i++) p[i] = 0.0 + positions[i] * step;
+  return subdivide(p, faces, h.schemes.slice(0, lod));
+}
+
+function addCoefficients(residual, reference) {
+  if (residual.length !== reference.length) return null;
+  const out = new Int32Array(residual.length);
+  for (let i = 0; i < out.length; i++) {
+    const s = residual[i] + reference[i];
+    if (s > 0x7fffffff || s < -0x80000000) return null;
+    out[i] = s;
+  }
+  return out;
+}
+
+/** Splits a frame payload into its fields (`decoder::read_payload`). */
+export function readPayload(data, unit, frame) {
+  const r = new Reader(data, unit.offset, unit.offset + unit.length, frame);
+  let referenceDistance = 0;
+  if (unit.type === PREDICTED) {
+    referenceDistance = r.u32('reference distance');
+    if (referenceDistance === 0 || referenceDistance > frame) {
+      throw r.error(`reference distance ${referenceDistance} does not name an earlier frame`);
+    }
+  }
+  const qp = r.i32('QP');
+  if (qp < QP_MIN || qp > QP_MAX) throw r.error(`QP ${qp} out of range`);
+  const base = r.block('base mesh');
+  let coefficientsPredicted = false;
+  if (unit.type === PREDICTED) {
+    const m = r.u8('coefficient mode');
+    if (m > 1) throw r.error(`unknown coefficient mode ${m}`);
+    coefficientsPredicted = m === 1;
+  }
+  const coef = r.block('displacements');
+  if (r.remaining() !== 0) throw r.error('unexpected bytes at the end of the frame');
+  return {
+    referenceDistance, qp, base: base.bytes, baseOffset: base.offset,
+    coefficientsPredicted, coefficients: coef.bytes, coefficientsOffset: coef.offset,
+  };
+}
