@@ -82,15 +82,7 @@ mod tests {
 
     /// A `n` x `n` grid of unit spacing in the plane z = 0, moved by `offset`.
     fn sheet(n: u32, offset: [f64; 3]) -> Mesh {
-        let p = (0..n).flat_map(|y| (0..n).map(move |x| [x as f64 + offset[0], y as f64 + offset[1], offset[2]])).collect();
-        let mut f = Vec::new();
-        for y in 0..n - 1 {
-            for x in 0..n - 1 {
-                let i = y * n + x;
-                f.push([i, i + 1, i + n]);
-                f.push([i + 1, i + n + 1, i + n]);
-            }
-        }
+        let (p, f) = crate::bvh::testmesh::grid(n, n, 1.0, offset);
         Mesh::new(p, f)
     }
 

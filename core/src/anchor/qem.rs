@@ -136,16 +136,8 @@ mod tests {
     /// A tent: two planes meeting at a ridge along x = 0, sampled on a grid of unit spacing.
     fn tent(n: i32) -> Mesh {
         let w = (2 * n + 1) as u32;
-        let p = (-n..=n).flat_map(|y| (-n..=n).map(move |x| [x as f64, y as f64, -(x as f64).abs()])).collect();
-        let mut f = Vec::new();
-        for y in 0..w - 1 {
-            for x in 0..w - 1 {
-                let i = y * w + x;
-                f.push([i, i + 1, i + w]);
-                f.push([i + 1, i + w + 1, i + w]);
-            }
-        }
-        Mesh::new(p, f)
+        let (p, f) = crate::bvh::testmesh::grid(w, w, 1.0, [-n as f64, -n as f64, 0.0]);
+        Mesh::new(p.into_iter().map(|q| [q[0], q[1], -q[0].abs()]).collect(), f)
     }
 
     fn on_tent(p: [f64; 3]) -> f64 {
