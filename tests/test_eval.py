@@ -312,8 +312,9 @@ def test_points_variant_in_results_and_report_as_test_and_as_anchor(experiment, 
     assert sum(",tm,points,R" in line and "points.csv" in line for line in table) == 2
 
     rows = {(r["sequence"], r["variant"]): r for r in report.bd_rows(results)}
-    assert rows["wobbly", "tm"]["d1_bd"] == pytest.approx(-10.0, abs=0.05)
-    assert rows["wobbly", "tm"]["d2_bd"] == pytest.approx(-10.0, abs=0.05)
+    # -10 % up to the rounding of the points' bytes to whole bytes (streams of a few hundred).
+    assert rows["wobbly", "tm"]["d1_bd"] == pytest.approx(-10.0, abs=0.15)
+    assert rows["wobbly", "tm"]["d2_bd"] == pytest.approx(-10.0, abs=0.15)
     assert rows["wobbly", "tm"]["enc_ratio"] is not None  # the file's times take part as well
     assert rows["still", "tm"]["d1_bd"] is None and rows["still", "tm"]["d1_note"] == "no points of tm"
     assert rows["Average", "tm"]["d1_note"] == "over 1 of 2 sequences"

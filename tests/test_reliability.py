@@ -36,7 +36,7 @@ def frames_dir(tmp_path_factory):
 
 def unit_starts(data: bytes) -> list[int]:
     """Start offset of every unit (frame and texture) after the header."""
-    pos = 74 + data[43]
+    pos = 75 + 3 * data[43]  # the header length (docs/bitstream.md section 2)
     starts = []
     while pos < len(data):
         starts.append(pos)
