@@ -328,7 +328,7 @@ def test_points_variant_in_results_and_report_as_test_and_as_anchor(experiment, 
     experiment.write_text(experiment.read_text().replace('anchor = "dm"', 'anchor = "tm"'))
     assert eval_cli(experiment, "--out", out) == 0
     rows = {(r["sequence"], r["variant"]): r for r in report.bd_rows(evaluate.load_results(out))}
-    assert rows["wobbly", "dm"]["d1_bd"] == pytest.approx(100 * (1 / 0.9 - 1), abs=0.05)
+    assert rows["wobbly", "dm"]["d1_bd"] == pytest.approx(100 * (1 / 0.9 - 1), abs=0.15)  # whole-byte rounding, as above
     assert rows["still", "dm"]["d2_note"] == "no points of tm"
 
     # --report-only rebuilds the page from results.json, points included.
@@ -371,7 +371,7 @@ def test_tm14_experiment_reads_the_shared_test_model_points():
     if not (SHARED_DATA.parent / "anchors" / "tm14_geometry_anchor.csv").is_file():
         pytest.skip("shared anchors not present")
     exp = evaluate.load_experiment(Path(__file__).resolve().parents[1] / "experiments" / "tm14_intra.toml")
-    assert exp.anchor == "tm14-ai" and [v.name for v in exp.variants] == ["tm14-ai", "dynmesh-ai", "no-refit", "midpoint", "draco"]
+    assert exp.anchor == "tm14-ai" and [v.name for v in exp.variants] == ["tm14-ai", "dynmesh-ai", "constant-lifting", "draco"]
     assert all(len(s.frames) == 6 for s in exp.sequences)
     points = exp.variant("tm14-ai").points  # the file's peaks and 6-frame bytes passed the checks
     for s in exp.sequences:
