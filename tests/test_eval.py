@@ -376,7 +376,7 @@ def test_tm14_experiment_reads_the_shared_test_model_points():
     points = exp.variant("tm14-ai").points  # the file's peaks and 6-frame bytes passed the checks
     for s in exp.sequences:
         assert [p["rate"] for p in points if p["sequence"] == s.name] == ["r1", "r2", "r3", "r4", "r5"]
-    assert len(evaluate.plan_runs(exp)) == 4 * (3 * 5 + 5)
+    assert len(evaluate.plan_runs(exp)) == 4 * (2 * 5 + 5)
 
 
 # ---------------------------------------------------------------- BD-rate
