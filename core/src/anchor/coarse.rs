@@ -78,7 +78,8 @@ pub fn walk_with_predicted_motion<T: Copy>(reference: &Mesh, mut place: impl FnM
     out.into_iter().map(|a| a.expect("every vertex is visited")).collect()
 }
 
-fn mean(v: &[[f64; 3]]) -> [f64; 3] {
+/// The mean of `v`; zero for none.
+pub(super) fn mean(v: &[[f64; 3]]) -> [f64; 3] {
     if v.is_empty() {
         return [0.0; 3];
     }

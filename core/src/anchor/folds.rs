@@ -30,15 +30,15 @@ pub struct FoldStats {
 /// moves only when that leaves fewer of its own triangles folded; the vertices with the most
 /// folded triangles go first, so the vertex that caused a fold moves, not its ring.
 pub fn repair_folds(reference: &Mesh, anchor: &mut [[f64; 3]], input: &Bvh) -> FoldStats {
-    let before = folded_faces(reference, anchor).len();
+    let mut folded = folded_faces(reference, anchor);
+    let before = folded.len();
     let rings = Adjacency::new(anchor.len(), &reference.faces);
     let faces_of = incident_faces(anchor.len(), &reference.faces);
-    let mut after = before;
     for _ in 0..ROUNDS {
-        if after == 0 {
+        if folded.is_empty() {
             break;
         }
-        for v in most_folded_first(reference, anchor, &faces_of) {
+        for v in most_folded_first(reference, anchor, &folded, &faces_of) {
             let old = anchor[v];
             let folds_here = |a: &[[f64; 3]]| faces_of[v].iter().filter(|&&f| is_folded(reference, a, f as usize)).count();
             let was = folds_here(anchor);
@@ -48,16 +48,16 @@ pub fn repair_folds(reference: &Mesh, anchor: &mut [[f64; 3]], input: &Bvh) -> F
                 anchor[v] = old;
             }
         }
-        after = folded_faces(reference, anchor).len();
+        folded = folded_faces(reference, anchor);
     }
-    FoldStats { before, after }
+    FoldStats { before, after: folded.len() }
 }
 
-/// Vertices of folded faces, by descending count of folded faces around them (then index).
-fn most_folded_first(reference: &Mesh, anchor: &[[f64; 3]], faces_of: &[Vec<u32>]) -> Vec<usize> {
-    let mut counts: Vec<(usize, usize)> = folded_faces(reference, anchor)
-        .into_iter()
-        .flat_map(|f| reference.faces[f])
+/// Vertices of the `folded` faces, by descending count of folded faces around them (then index).
+fn most_folded_first(reference: &Mesh, anchor: &[[f64; 3]], folded: &[usize], faces_of: &[Vec<u32>]) -> Vec<usize> {
+    let mut counts: Vec<(usize, usize)> = folded
+        .iter()
+        .flat_map(|&f| reference.faces[f])
         .map(|v| v as usize)
         .collect::<std::collections::BTreeSet<usize>>()
         .into_iter()
@@ -96,15 +96,8 @@ fn is_folded(reference: &Mesh, anchor: &[[f64; 3]], face: usize) -> bool {
 }
 
 fn ring_centre(rings: &Adjacency, p: &[[f64; 3]], v: usize) -> [f64; 3] {
-    let r = rings.of(v);
-    if r.is_empty() {
-        return p[v];
-    }
-    let s = r.iter().fold([0.0; 3], |acc, &w| {
-        let q = p[w as usize];
-        [acc[0] + q[0], acc[1] + q[1], acc[2] + q[2]]
-    });
-    s.map(|c| c / r.len() as f64)
+    let ring: Vec<[f64; 3]> = rings.of(v).iter().map(|&w| p[w as usize]).collect();
+    if ring.is_empty() { p[v] } else { super::coarse::mean(&ring) }
 }
 
 #[cfg(test)]
