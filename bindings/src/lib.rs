@@ -139,6 +139,7 @@ fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
             "rd_slope" => c.rd_slope_db = value.extract()?,
             "refit" => c.refit = value.extract()?,
             "fold_repair" => c.fold_repair = value.extract()?,
+            "rigid_align" => c.rigid_align = value.extract()?,
             "lifting" => {
                 let name: String = value.extract()?;
                 c.lifting = LiftingChoice::from_name(&name).ok_or_else(|| {
@@ -354,6 +355,7 @@ fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("rd_slope", c.rd_slope_db)?;
     d.set_item("refit", c.refit)?;
     d.set_item("fold_repair", c.fold_repair)?;
+    d.set_item("rigid_align", c.rigid_align)?;
     d.set_item("lifting", c.lifting.name())?;
     let aq = c.aq.unwrap_or_default();
     d.set_item("aq", c.aq.is_some())?;

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::anchor::{self, AnchorParams, AnchorStages};
+use crate::anchor::{self, AnchorParams, AnchorStages, ReferenceBase, Rigid};
 use crate::basecoder;
 use crate::bitstream::{self, FrameType, SequenceHeader, Writer};
 use crate::bvh::Bvh;
@@ -122,13 +122,17 @@ pub struct EncoderConfig {
     /// rate (the local slope of the codec's RD curve): a frame is predicted when the PSNR it
     /// loses against intra is at most `rd_slope_db * log2(intra bytes / predicted bytes)`.
     pub rd_slope_db: f64,
-    /// Refit the base mesh so that its subdivision fits the input, before it is quantized.
+    /// Refit the base mesh so that its subdivision fits the input, before it is quantized:
+    /// an intra frame's decimated base and a predicted frame's anchor (not a tracked base).
     pub refit: bool,
     /// The lifting transform's update weights.
     pub lifting: LiftingChoice,
     /// Repair folded anchor triangles before their motion is coded (`anchor::folds`; not a
     /// stage of the paper).
     pub fold_repair: bool,
+    /// Move each part of the reference base rigidly onto the input before the anchor's
+    /// matching (`anchor::rigid`; not a stage of the paper).
+    pub rigid_align: bool,
 }
 
 impl Default for EncoderConfig {
@@ -148,6 +152,7 @@ impl Default for EncoderConfig {
             refit: true,
             lifting: LiftingChoice::PerValence,
             fold_repair: true,
+            rigid_align: true,
         }
     }
 }
@@ -256,9 +261,19 @@ struct Reference {
     faces: Vec<[u32; 3]>,
     /// Quantized displacement coefficients, which a predicted frame may code its own against.
     coefficients: Vec<i32>,
-    /// The base vertices' places on `input`, while the frames since they were bound have
-    /// kept its connectivity and been predicted by tracking.
-    bindings: Option<Bindings>,
+    /// How the base was moved to this frame, when it was predicted.
+    motion: Option<Motion>,
+    /// Index of `input`'s faces.
+    surface: Bvh,
+}
+
+/// How a predicted frame's base mesh was found, which the next frame builds on.
+#[derive(Clone)]
+enum Motion {
+    /// Tracked on an input of constant connectivity: the base vertices' places on the input.
+    Tracked(Bindings),
+    /// By the anchor mesh, with the rigid motion of each part when it was aligned.
+    Anchor(Option<Vec<Rigid>>),
 }
 
 /// One way of coding the current frame.
@@ -313,8 +328,9 @@ impl SequenceEncoder {
         let same_topology = self.reference.as_ref().is_some_and(|r| tracking::same_connectivity(&r.input, &input));
         let may_predict = self.frame % cfg.intra_period != 0 && self.reference.is_some();
         let anchor_start = Instant::now();
-        let (anchor, bindings) = may_predict.then(|| self.anchor_positions(&input, &target, same_topology)).flatten().unzip();
+        let (anchor, motion) = may_predict.then(|| self.anchor_positions(&input, &target, same_topology)).flatten().unzip();
         let anchor_seconds = anchor_start.elapsed().as_secs_f64();
+        let anchor = anchor.map(|moved| self.predicted_base(moved, same_topology, &target));
         let predicted = anchor.map(|a| self.predicted(&a, &input, &target)).transpose()?;
         let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
         let unit = bitstream::write_unit(chosen.frame_type, &chosen.payload);
@@ -333,28 +349,45 @@ impl SequenceEncoder {
             seconds: start.elapsed().as_secs_f64(),
         };
         let base = Mesh::new(decoder::base_in_world_units(&self.header, &chosen.base), chosen.faces.clone());
-        let bindings = bindings.flatten().filter(|_| chosen.frame_type == FrameType::Predicted);
-        self.reference = Some(Reference { input, base: chosen.base, faces: chosen.faces, coefficients: chosen.coefficients, bindings });
+        let motion = motion.filter(|_| chosen.frame_type == FrameType::Predicted);
+        self.reference = Some(Reference { input, base: chosen.base, faces: chosen.faces, coefficients: chosen.coefficients, motion, surface: target });
         self.frame += 1;
         Ok(EncodedFrame { unit, reconstruction: chosen.reconstruction, base, stats })
     }
 
-    /// The current frame's base mesh positions (base grid units) with the reference base
-    /// mesh's connectivity, if this frame may be predicted; with constant topology also the
-    /// bindings that tracked them, which the next frame reuses if this one is predicted.
-    fn anchor_positions(&self, input: &Mesh, target: &Bvh, same_topology: bool) -> Option<(Vec<[u32; 3]>, Option<Bindings>)> {
+    /// The reference base mesh moved onto the current frame (grid units), if this frame may
+    /// be predicted, and how it was moved, which the next frame reuses if this one is predicted.
+    fn anchor_positions(&self, input: &Mesh, target: &Bvh, same_topology: bool) -> Option<(Vec<[f64; 3]>, Motion)> {
         let r = self.reference.as_ref()?;
-        let base_grid = self.header.grid.coarser(self.header.base_bits);
         let reference = Mesh::new(decoder::base_in_grid_units(&self.header, &r.base), r.faces.clone());
-        let (moved, bindings) = if same_topology {
-            let bindings = r.bindings.clone().unwrap_or_else(|| tracking::bind(&reference.positions, &r.input));
-            (tracking::bound_positions(&bindings, input, &reference.positions), Some(bindings))
+        let (moved, motion) = if same_topology {
+            let bindings = match &r.motion {
+                Some(Motion::Tracked(b)) => b.clone(),
+                _ => tracking::bind(&reference.positions, &r.input),
+            };
+            (tracking::bound_positions(&bindings, input, &reference.positions), Motion::Tracked(bindings))
         } else {
             let stages = self.config.inter.anchor_stages()?;
-            let params = AnchorParams { stages, repair_folds: self.config.fold_repair };
-            (anchor::anchor_mesh(&reference, input, target, &params).positions, None)
+            let params = AnchorParams { stages, rigid_align: self.config.rigid_align, repair_folds: self.config.fold_repair };
+            let motions = match &r.motion {
+                Some(Motion::Anchor(m)) => m.as_deref(),
+                _ => None,
+            };
+            let base = ReferenceBase { mesh: &reference, surface: Some(&r.surface), motions };
+            let a = anchor::anchor_mesh(&base, input, target, &params);
+            (a.positions, Motion::Anchor(a.motions))
         };
-        Some((moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect(), bindings))
+        Some((moved, motion))
+    }
+
+    /// The predicted frame's base positions on the base grid from the reference base moved
+    /// to `moved` (grid units): refitted like an intra frame's base when it was moved by the
+    /// anchor (a tracked base keeps the places it is bound to).
+    fn predicted_base(&self, moved: Vec<[f64; 3]>, tracked: bool, target: &Bvh) -> Vec<[u32; 3]> {
+        let r = self.reference.as_ref().expect("predicted frames have a reference");
+        let moved = if self.config.refit && !tracked { refit_base(&Mesh::new(moved, r.faces.clone()), &self.header.schemes, target) } else { moved };
+        let base_grid = self.header.grid.coarser(self.header.base_bits);
+        moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect()
     }
 
     fn intra(&self, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
@@ -489,7 +522,10 @@ impl SequenceEncoder {
 /// Mean squared distance from the surface `(positions, faces)` to `surface`, sampled at face
 /// centroids and weighted by face area (0 for a surface without area).
 fn area_weighted_squared_distance(positions: &[[f64; 3]], faces: &[[u32; 3]], surface: &Bvh) -> f64 {
-    let (weighted, area) = faces
+    // Summed in order after the parallel map: a parallel reduction's grouping depends on
+    // the thread scheduling, and the decision it feeds must not, or streams would differ
+    // from run to run (and between a sequential and a parallel encode).
+    let terms: Vec<(f64, f64)> = faces
         .par_iter()
         .map(|f| {
             let c = f.map(|v| positions[v as usize]);
@@ -497,7 +533,8 @@ fn area_weighted_squared_distance(positions: &[[f64; 3]], faces: &[[u32; 3]], su
             let a = norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
             (a * surface.closest_point(centroid).map_or(0.0, |h| h.dist2), a)
         })
-        .reduce(|| (0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+        .collect();
+    let (weighted, area) = terms.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
     if area > 0.0 { weighted / area } else { 0.0 }
 }
 

@@ -50,7 +50,7 @@ def _table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
 def _encoder_options(a) -> dict:
     return dict(qp=a.qp, base_ratio=a.base_ratio, subdiv=a.subdiv, scheme=a.scheme, bits=a.bits,
                 base_bits=a.base_bits, normal_only=not a.all_components, intra_period=a.intra_period,
-                inter=a.inter, rd_slope=a.rd_slope, refit=a.refit, lifting=a.lifting, fold_repair=a.fold_repair, aq=a.aq, aq_alpha=a.aq_alpha,
+                inter=a.inter, rd_slope=a.rd_slope, refit=a.refit, lifting=a.lifting, fold_repair=a.fold_repair, rigid_align=a.rigid_align, aq=a.aq, aq_alpha=a.aq_alpha,
                 aq_delta=a.aq_delta, aq_h=a.aq_h, texture="auto" if a.texture is None else a.texture,
                 texture_size=a.texture_size, texture_qp=a.texture_qp, texture_codec=a.texture_codec)
 
@@ -392,12 +392,15 @@ def parser() -> argparse.ArgumentParser:
                         f"(default {d['inter']})")
     p.add_argument("--fold-repair", action=argparse.BooleanOptionalAction, default=d["fold_repair"],
                    help="repair flipped or degenerate anchor triangles before coding (not in the paper; default: %(default)s)")
+    p.add_argument("--rigid-align", action=argparse.BooleanOptionalAction, default=d["rigid_align"],
+                   help="move each connected part of the reference base rigidly onto the input (ICP, predicted from the "
+                        "previous frame's motion) before the anchor's matching (not in the paper; default: %(default)s)")
     p.add_argument("--rd-slope", type=float, default=d["rd_slope"],
                    help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
                         f"intra (default {d['rd_slope']:g})")
     p.add_argument("--refit", action=argparse.BooleanOptionalAction, default=d["refit"],
-                   help="least-squares refit of each intra base mesh so that its subdivision fits the input, "
-                        "before quantization (default: %(default)s)")
+                   help="least-squares refit of each base mesh (intra, and the anchor of predicted frames) so that "
+                        "its subdivision fits the input, before quantization (default: %(default)s)")
     p.add_argument("--lifting", choices=["valence", "constant"], default=d["lifting"],
                    help="update weights of the lifting transform: valence = the test model's per-level weights "
                         "divided by each parent's valence, constant = 1/8 at every level (default %(default)s)")

@@ -6,17 +6,21 @@
 //! QEM refinement of those matches (`NnsMeQem`, [`qem`]). `NnsMeProj` is our own variant of
 //! the fine stage: each motion-predicted point goes to its closest point on the input
 //! surface instead of to an input vertex and then a collapse point. [`folds`] then repairs
-//! flipped or degenerate anchor triangles whatever the stages (not in the paper; it can be
-//! turned off).
+//! flipped or degenerate anchor triangles whatever the stages, and [`rigid`] moves each
+//! connected part rigidly onto the input before them (neither is in the paper; both can be
+//! turned off). The stages run on the reference base's closest points on its own input;
+//! each vertex's offset from there, which the refit gave it, is carried along.
 
 pub mod coarse;
 pub mod folds;
 pub mod qem;
+pub mod rigid;
 
 use crate::bvh::Bvh;
-use crate::mesh::Mesh;
+use crate::mesh::{add, sub, Mesh};
 use coarse::NearestVertex;
 pub use folds::FoldStats;
+pub use rigid::Rigid;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AnchorStages {
@@ -33,14 +37,30 @@ pub enum AnchorStages {
 #[derive(Debug, Clone)]
 pub struct AnchorParams {
     pub stages: AnchorStages,
+    /// Move each part of the reference rigidly onto the input first ([`rigid`]).
+    pub rigid_align: bool,
     /// Repair folded anchor triangles ([`folds`]).
     pub repair_folds: bool,
 }
 
 impl Default for AnchorParams {
     fn default() -> Self {
-        Self { stages: AnchorStages::NnsMeQem, repair_folds: true }
+        Self { stages: AnchorStages::NnsMeQem, rigid_align: false, repair_folds: false }
     }
+}
+
+/// What the anchor of a predicted frame starts from: the reference frame's base mesh, and
+/// what the reference frame knew about it.
+pub struct ReferenceBase<'a> {
+    /// The base mesh, in the input's units.
+    pub mesh: &'a Mesh,
+    /// The reference frame's input surface. A refitted base lies off it, by what lets its
+    /// subdivision fit (`refit`); the anchor moves the base's closest points on it and
+    /// carries each vertex's offset along, so that the motion is the surface's and the
+    /// offset survives it.
+    pub surface: Option<&'a Bvh>,
+    /// The rigid motion of each part in the reference frame, which predicts this frame's.
+    pub motions: Option<&'a [Rigid]>,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -51,14 +71,39 @@ pub struct AnchorStats {
 pub struct Anchor {
     /// One position per reference vertex, in the input's units.
     pub positions: Vec<[f64; 3]>,
+    /// The rigid motion of each part of the reference (`rigid::parts`), with `rigid_align`.
+    pub motions: Option<Vec<Rigid>>,
     pub stats: AnchorStats,
 }
 
-/// The anchor mesh of `reference` (a base mesh) on `input` (same units), whose faces are
-/// `reference.faces`. `input` must have vertices; `input_bvh` indexes its faces.
-pub fn anchor_mesh(reference: &Mesh, input: &Mesh, input_bvh: &Bvh, params: &AnchorParams) -> Anchor {
+/// The anchor mesh of `reference` on `input` (same units), whose faces are the reference's.
+/// `input` must have vertices; `input_bvh` indexes its faces.
+pub fn anchor_mesh(reference: &ReferenceBase, input: &Mesh, input_bvh: &Bvh, params: &AnchorParams) -> Anchor {
+    let base = reference.mesh;
+    let offsets: Vec<[f64; 3]> = match reference.surface {
+        Some(s) => base.positions.iter().map(|&p| s.closest_point(p).map_or([0.0; 3], |c| sub(p, c.point))).collect(),
+        None => vec![[0.0; 3]; base.positions.len()],
+    };
+    let on_surface: Vec<[f64; 3]> = base.positions.iter().zip(&offsets).map(|(&p, &o)| sub(p, o)).collect();
+    let start = Mesh::new(on_surface, base.faces.clone());
+    let aligned = params.rigid_align.then(|| rigid::align_parts(&start, input_bvh, reference.motions));
+    let start = match &aligned {
+        Some(a) => Mesh::new(a.positions.clone(), base.faces.clone()),
+        None => start,
+    };
+    let mut positions = matched(&start, input, input_bvh, params.stages);
+    let folds = if params.repair_folds { folds::repair_folds(&start, &mut positions, input_bvh) } else { FoldStats::default() };
+    for (v, (p, &o)) in positions.iter_mut().zip(&offsets).enumerate() {
+        let o = aligned.as_ref().map_or(o, |a| a.motions[a.parts[v] as usize].rotate(o));
+        *p = add(*p, o);
+    }
+    Anchor { positions, motions: aligned.map(|a| a.motions), stats: AnchorStats { folds } }
+}
+
+/// The stages' positions for the vertices of `reference` (moved as far as it already is).
+fn matched(reference: &Mesh, input: &Mesh, input_bvh: &Bvh, stages: AnchorStages) -> Vec<[f64; 3]> {
     let nearest = NearestVertex::new(&input.positions);
-    let mut positions = match params.stages {
+    match stages {
         AnchorStages::Nns => at(input, &coarse::nearest_matches(reference, &nearest)),
         AnchorStages::NnsMe => at(input, &coarse::motion_estimated_matches(reference, &nearest)),
         AnchorStages::NnsMeQem => qem::fine_anchor(input, &coarse::motion_estimated_matches(reference, &nearest)),
@@ -66,9 +111,7 @@ pub fn anchor_mesh(reference: &Mesh, input: &Mesh, input_bvh: &Bvh, params: &Anc
             .into_iter()
             .map(|(p, _)| p)
             .collect(),
-    };
-    let folds = if params.repair_folds { folds::repair_folds(reference, &mut positions, input_bvh) } else { FoldStats::default() };
-    Anchor { positions, stats: AnchorStats { folds } }
+    }
 }
 
 fn at(input: &Mesh, matches: &[u32]) -> Vec<[f64; 3]> {
@@ -88,7 +131,8 @@ mod tests {
 
     fn anchor(reference: &Mesh, input: &Mesh, stages: AnchorStages) -> Vec<[f64; 3]> {
         let bvh = Bvh::new(&input.positions, &input.faces);
-        anchor_mesh(reference, input, &bvh, &AnchorParams { stages, repair_folds: false }).positions
+        let base = ReferenceBase { mesh: reference, surface: None, motions: None };
+        anchor_mesh(&base, input, &bvh, &AnchorParams { stages, rigid_align: false, repair_folds: false }).positions
     }
 
     #[test]
