@@ -250,7 +250,8 @@ def metrics(reference, decoded, *, peak: float | None = None, grid_size: int = 1
 
     The sampling grid lies over the bounding box of the whole reference sequence; the
     peak defaults to the largest side of that box. Colour is sampled at the same grid
-    points (bilinear lookup), in BT.709 YCbCr with peak 1. Returns per-frame figures and
+    points (bilinear lookup, each sample rounded to 8 bits as MPEG's mmetric does) and
+    compared in BT.709 YCbCr with peak 1. Returns per-frame figures and
     their means (the sequence figure of the MPEG test conditions).
     """
     refs = [reference] if isinstance(reference, Mesh) else list(reference)
