@@ -1100,47 +1100,23 @@ mod tests {
         assert_eq!(bilinear_f32(&t, [1e30, -1e30]), [255.0, 200.0, 50.0]);
     }
 
-    /// Minimal OBJ reader: `v x y z` and triangular `f a b c` (1-based, `a/..` forms allowed).
-    fn read_obj(path: &std::path::Path) -> Option<Mesh> {
-        let text = std::fs::read_to_string(path).ok()?;
-        let (mut pos, mut faces) = (Vec::new(), Vec::new());
-        for line in text.lines() {
-            let mut it = line.split_whitespace();
-            match it.next() {
-                Some("v") => {
-                    let c: Vec<f64> = it.take(3).filter_map(|s| s.parse().ok()).collect();
-                    pos.push([*c.first()?, *c.get(1)?, *c.get(2)?]);
-                }
-                Some("f") => {
-                    let ix: Vec<u32> = it
-                        .filter_map(|s| s.split('/').next()?.parse::<u32>().ok()?.checked_sub(1))
-                        .collect();
-                    faces.push([*ix.first()?, *ix.get(1)?, *ix.get(2)?]);
-                }
-                _ => {}
-            }
-        }
-        Some((pos, faces))
-    }
+    mod shared_data {
+        use super::*;
+        use crate::shared_data::read_obj;
 
-    #[test]
-    fn matches_mmetric_on_basketball_player_frames_11_and_12() {
-        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../../shared/data/basketball_player");
-        let (Some((rp, rf)), Some((dp, df))) = (
-            read_obj(&dir.join("basketball_player_fr0011.obj")),
-            read_obj(&dir.join("basketball_player_fr0012.obj")),
-        ) else {
-            println!("note: {} not found, skipping the mmetric reference check", dir.display());
-            return;
-        };
-        let Some((lo, hi)) = crate::mesh::bounds(&rp) else { panic!("empty reference mesh") };
-        let grid = SamplingGrid::over_box(lo, hi, 1024);
-        let start = std::time::Instant::now();
-        let (d1, d2) = mesh_psnr(&rp, &rf, &dp, &df, &grid, 18.73565);
-        let elapsed = start.elapsed();
-        println!("basketball 11 vs 12: D1 {d1:.4} dB, D2 {d2:.4} dB in {elapsed:?}");
-        assert!((d1 - 70.790).abs() < 0.01, "D1 {d1}");
-        assert!((d2 - 71.908).abs() < 0.01, "D2 {d2}");
+        #[test]
+        #[ignore = "needs ../shared/data"]
+        fn matches_mmetric_on_basketball_player_frames_11_and_12() {
+            let r = read_obj("basketball_player/basketball_player_fr0011.obj");
+            let d = read_obj("basketball_player/basketball_player_fr0012.obj");
+            let (lo, hi) = crate::mesh::bounds(&r.positions).expect("a non-empty reference");
+            let grid = SamplingGrid::over_box(lo, hi, 1024);
+            let start = std::time::Instant::now();
+            let (d1, d2) = mesh_psnr(&r.positions, &r.faces, &d.positions, &d.faces, &grid, 18.73565);
+            let elapsed = start.elapsed();
+            println!("basketball 11 vs 12: D1 {d1:.4} dB, D2 {d2:.4} dB in {elapsed:?}");
+            assert!((d1 - 70.790).abs() < 0.01, "D1 {d1}");
+            assert!((d2 - 71.908).abs() < 0.01, "D2 {d2}");
+        }
     }
 }
