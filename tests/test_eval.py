@@ -6,6 +6,7 @@ the whole file runs in well under a minute.
 
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -130,6 +131,16 @@ def test_bad_experiment_files_fail_in_one_line(experiment, capsys, edit, message
 def test_missing_experiment_file_fails_cleanly(tmp_path, capsys):
     assert eval_cli(tmp_path / "none.toml") == 1
     assert "cannot read experiment file" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("missing", [["DracoPy"], ["DracoPy", "matplotlib"]])
+def test_eval_without_the_eval_extra_says_how_to_install_it(experiment, capsys, monkeypatch, missing):
+    for name in missing:
+        monkeypatch.setitem(sys.modules, name, None)  # what find_spec reports for a module not installed
+    assert eval_cli(experiment) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == f"dynmesh eval: error: needs {' and '.join(missing)}, which the codec itself does not: " \
+                  "pip install 'dynmesh[eval]'"
 
 
 # ---------------------------------------------------------------- runs, cache, report

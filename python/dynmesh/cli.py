@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import json
 import sys
 import tempfile
@@ -280,9 +281,23 @@ def _demo_rate(meshes, raw: int, qp: int, work: Path) -> dict:
             "enc_ms": 1000 * enc_s / len(meshes), "dec_ms": 1000 * dec_s / len(meshes)}
 
 
+#: What `dynmesh eval` needs beyond the codec (the `eval` extra): the Draco baseline and the
+#: report's plots.
+EVAL_MODULES = ("DracoPy", "matplotlib")
+
+
+def _require_eval_extra() -> None:
+    """Fails before any work when the `eval` extra is not installed, rather than midway."""
+    missing = [name for name in EVAL_MODULES if importlib.util.find_spec(name) is None]
+    if missing:
+        raise CliError(f"needs {' and '.join(missing)}, which the codec itself does not: "
+                       "pip install 'dynmesh[eval]'")
+
+
 def cmd_eval(a) -> dict:
     from . import evaluate, report
 
+    _require_eval_extra()
     exp = evaluate.load_experiment(a.config)
     out = Path(a.out) if a.out else Path("results") / exp.name
     if a.jobs < 1:

@@ -87,10 +87,7 @@ from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10: the same parser, from PyPI
-    import tomli as tomllib
+import tomllib
 
 from . import api, texture
 from .baselines import Draco, Encoded
