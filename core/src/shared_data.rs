@@ -7,14 +7,15 @@
 //! shared_data` runs exactly these tests. Run without the data, such a test fails naming the
 //! missing path instead of passing without having measured anything.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use crate::mesh::Mesh;
 
 /// `<repository>/../shared/data`.
 pub fn dir() -> PathBuf {
-    // The crate lives in `<repository>/core`.
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
+    // The crate lives in `<repository>/core`; its grandparent is the folder holding the repository.
+    let beside = Path::new(env!("CARGO_MANIFEST_DIR")).ancestors().nth(2).unwrap_or(Path::new(".."));
+    beside.join("shared/data")
 }
 
 /// Positions and faces of the OBJ file at `relative` (e.g.
