@@ -232,11 +232,13 @@ fn uv_at(mesh: &UvMesh, face: usize, first: usize, w: [f32; 3]) -> Option<[f32; 
 /// sample's position in texels is `uv * size - 1/2` (v up, so rows count from the bottom), each
 /// of the four texels is clamped to the image on its own, and the blend is `a (1 - t) + b t`,
 /// first along rows, then between them. The precision matters: it decides on which side of a
-/// half level a sample lies, and so how it rounds to 8 bits. Channels 0-255, not rounded.
+/// half level a sample lies, and so how it rounds to 8 bits. Channels 0-255, not rounded. The
+/// texture must not be empty (the bindings refuse one).
 fn bilinear_f32(texture: &Texture, uv: [f32; 2]) -> [f32; 3] {
     let size = [texture.width, texture.height];
     let pos: [f32; 2] = std::array::from_fn(|k| uv[k] * size[k] as f32 - 0.5);
-    // `as` saturates (NaN gives 0), and a weight that is not finite reads the first texel.
+    // `as` saturates (NaN gives 0); a blend weight that is not finite (a UV too large for `f32`
+    // texel arithmetic) takes the corner texel, so no NaN reaches the rounding.
     let corner = pos.map(|p| p.floor() as i64);
     let frac = pos.map(|p| Some(p - p.floor()).filter(|f| f.is_finite()).unwrap_or(0.0));
     let texel = |dx: i64, dy: i64| {
