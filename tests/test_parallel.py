@@ -132,7 +132,7 @@ def test_a_worker_that_dies_is_a_clear_error_and_no_output_file(tmp_path, frames
     out = tmp_path / "s.dmsh"
     frames = frames[:6] + [dying(frames[6])] + frames[7:]
     lo, hi = api.sequence_bounds(frames)
-    with pytest.raises(parallel.WorkerError, match="frames 4-7: a worker process died"):
+    with pytest.raises(parallel.WorkerError, match=r"a worker process died .* with frames (\S+, )*4-7\b"):
         parallel.encode_to_file(out, frames, sequence=(12, lo, hi), texture=False, jobs=2, intra_period=PERIOD)
     assert not list(tmp_path.iterdir())
 
@@ -173,6 +173,6 @@ def test_a_ray_worker_that_keeps_dying_is_a_clear_error_and_no_output_file(ray_c
     out = tmp_path / "s.dmsh"
     frames = frames[:6] + [dying(frames[6])] + frames[7:]
     lo, hi = api.sequence_bounds(frames)
-    with pytest.raises(parallel.WorkerError, match="frames 4-7"):
+    with pytest.raises(parallel.WorkerError, match=r"with frames (\S+, )*4-7\b"):
         parallel.encode_to_file(out, frames, sequence=(12, lo, hi), texture=False, ray="auto", intra_period=PERIOD)
     assert not list(tmp_path.iterdir())

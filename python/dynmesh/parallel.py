@@ -64,8 +64,8 @@ class GroupJob:
     texture: dict | None  # texture options, or None for an untextured stream
     keep: bool  # keep the reconstructions
 
-    def name(self) -> str:
-        return f"frames {self.first}-{self.first + len(self.frames) - 1}"
+    def span(self) -> str:
+        return f"{self.first}-{self.first + len(self.frames) - 1}"
 
 
 class _Unreachable(Exception):
@@ -200,10 +200,12 @@ def _in_order(executor, groups: Iterator[GroupJob], window: int) -> Iterator[api
 
     def finished(job: GroupJob, future: Future) -> api.EncodeResult:
         nonlocal send_meshes
-        result = result_of(future, job.name())
+        # A dead process breaks every future of a local pool: name all the groups in flight.
+        in_flight = "frames " + ", ".join(j.span() for j in [job, *(j for j, _ in pending)])
+        result = result_of(future, in_flight)
         if result is None:  # the worker has no such files: from now on send the frames
             send_meshes = True
-            result = result_of(executor.submit(encode_group, _with_meshes(job)), job.name())
+            result = result_of(executor.submit(encode_group, _with_meshes(job)), f"frames {job.span()}")
         return result
 
     try:
@@ -225,13 +227,13 @@ def result_of(future: Future, what: str):
     try:
         return future.result()
     except BrokenProcessPool:
-        raise WorkerError(f"{what}: a worker process died (killed, or out of memory?)") from None
+        raise WorkerError(f"a worker process died (killed, or out of memory?) with {what} in flight") from None
     except Exception as e:
         cause = getattr(e, "cause", None)  # a Ray task's own error, without Ray's traceback text
         if isinstance(cause, Exception):
             raise cause from None
         if type(e).__module__ == "ray.exceptions":  # the worker died, and died again on every retry
-            raise WorkerError(f"{what}: {type(e).__name__}: {e}") from None
+            raise WorkerError(f"{type(e).__name__} with {what} in flight: {e}") from None
         raise
 
 
