@@ -211,6 +211,12 @@ def test_parallel_runs_match_serial_runs(experiment, tmp_path, capsys):
     assert measured_table(tmp_path / "par") == measured_table(tmp_path / "serial")
 
 
+def test_runs_on_a_ray_cluster_match_serial_runs(ray_cluster, experiment, tmp_path):
+    assert eval_cli(experiment, "--out", tmp_path / "serial") == 0
+    assert eval_cli(experiment, "--out", tmp_path / "ray", "--ray", "auto") == 0
+    assert measured_table(tmp_path / "ray") == measured_table(tmp_path / "serial")
+
+
 def test_interrupted_experiment_keeps_finished_runs(experiment, tmp_path, monkeypatch, count_encodes):
     out = tmp_path / "out"
     original = evaluate.measure
