@@ -57,3 +57,12 @@ def shared_sequence(name: str) -> Path:
     if not path.is_dir():
         pytest.skip(f"shared data not present ({path})")
     return path
+
+
+@pytest.fixture(scope="session")
+def ray_cluster():
+    """A local Ray cluster of 2 CPUs, this process its driver; a clean skip without Ray."""
+    ray = pytest.importorskip("ray", reason='the Ray back end needs pip install "dynmesh[ray]"')
+    ray.init(num_cpus=2, logging_level="WARNING")
+    yield ray
+    ray.shutdown()

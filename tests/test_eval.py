@@ -6,6 +6,7 @@ the whole file runs in well under a minute.
 
 import json
 import math
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -132,6 +133,16 @@ def test_missing_experiment_file_fails_cleanly(tmp_path, capsys):
     assert "cannot read experiment file" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize("missing", [["DracoPy"], ["DracoPy", "matplotlib"]])
+def test_eval_without_the_eval_extra_says_how_to_install_it(experiment, capsys, monkeypatch, missing):
+    for name in missing:
+        monkeypatch.setitem(sys.modules, name, None)  # what find_spec reports for a module not installed
+    assert eval_cli(experiment) == 1
+    err = capsys.readouterr().err.strip()
+    assert err == f"dynmesh eval: error: needs {' and '.join(missing)}, which the codec itself does not: " \
+                  "pip install 'dynmesh[eval]'"
+
+
 # ---------------------------------------------------------------- runs, cache, report
 
 
@@ -198,6 +209,12 @@ def test_parallel_runs_match_serial_runs(experiment, tmp_path, capsys):
     assert summary["measured"] == 4 and summary["reused"] == 0
     assert [r["variant"] for r in summary["bd_rate"]] == ["draco", "draco"]
     assert measured_table(tmp_path / "par") == measured_table(tmp_path / "serial")
+
+
+def test_runs_on_a_ray_cluster_match_serial_runs(ray_cluster, experiment, tmp_path):
+    assert eval_cli(experiment, "--out", tmp_path / "serial") == 0
+    assert eval_cli(experiment, "--out", tmp_path / "ray", "--ray", "auto") == 0
+    assert measured_table(tmp_path / "ray") == measured_table(tmp_path / "serial")
 
 
 def test_interrupted_experiment_keeps_finished_runs(experiment, tmp_path, monkeypatch, count_encodes):

@@ -13,7 +13,7 @@ from dynmesh import io as mesh_io
 from dynmesh.io import MeshError, MeshWarning, read_mesh, write_mesh
 from dynmesh.mesh import Mesh
 
-from conftest import SHARED_DATA, uv_sphere
+from conftest import shared_sequence, uv_sphere
 
 
 def write_text(path, text: str):
@@ -522,9 +522,7 @@ def test_invalid_mesh_is_refused_before_anything_is_written(tmp_path):
 
 
 def test_reads_the_shared_textured_basketball_frame():
-    path = SHARED_DATA / "basketball_textured" / "basketball_player_00000001.obj"
-    if not path.is_file():
-        pytest.skip(f"shared data not present ({path})")
+    path = shared_sequence("basketball_textured") / "basketball_player_00000001.obj"
     start = time.perf_counter()
     mesh = read_quietly(path)
     print(f"\nread {path.name}: {mesh.vertex_count} vertices, {mesh.face_count} faces in {time.perf_counter() - start:.3f} s")

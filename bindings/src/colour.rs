@@ -38,7 +38,8 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// Geometry and texture distortion of a decoded textured mesh against the reference, as the
 /// common test conditions measure it: both meshes sampled on the grid over `[box_min, box_max]`
 /// (normally the reference box) with `grid_size` lines, colours read bilinearly from each mesh's
-/// texture at the samples' UVs, in BT.709 YCbCr [0, 1].
+/// texture at the samples' UVs and rounded to 8 bits, compared in BT.709 YCbCr [0, 1], all as
+/// MPEG's mmetric computes them (see the core's `metrics` module).
 ///
 /// Each mesh is positions (N, 3) float64, faces (M, 3) int64, uv (K, 2) float64 (v up, as in
 /// OBJ), uv_faces (M, 3) int64 indexing uv per face corner, texture (H, W, 3) uint8 with rows

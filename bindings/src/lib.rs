@@ -173,6 +173,12 @@ impl Encoder {
         Ok(Self { inner })
     }
 
+    /// Makes the next frame frame `index`, which must start a group (a multiple of the
+    /// intra period): its frames then get the units the sequential encoder gives them.
+    fn start_group(&mut self, index: u32) -> PyResult<()> {
+        self.inner.start_group(index).map_err(|e| PyValueError::new_err(e.0))
+    }
+
     /// The serialized sequence header.
     fn header_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
         PyBytes::new(py, &dynmesh::bitstream::write_header(self.inner.header()))

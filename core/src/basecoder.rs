@@ -1306,66 +1306,44 @@ mod tests {
         }
     }
 
-    fn read_obj(path: &str) -> Option<FloatMesh> {
-        let text = std::fs::read_to_string(path).ok()?;
-        let (mut p, mut f) = (vec![], vec![]);
-        for line in text.lines() {
-            let mut it = line.split_whitespace();
-            match it.next() {
-                Some("v") => {
-                    let c: Vec<f64> = it.take(3).map(|x| x.parse().unwrap()).collect();
-                    p.push([c[0], c[1], c[2]]);
-                }
-                Some("f") => {
-                    let v: Vec<u32> = it
-                        .map(|x| x.split('/').next().unwrap().parse::<u32>().unwrap() - 1)
-                        .collect();
-                    for k in 1..v.len() - 1 {
-                        f.push([v[0], v[k], v[k + 1]]);
-                    }
-                }
-                _ => {}
-            }
-        }
-        Some((p, f))
-    }
+    mod shared_data {
+        use super::*;
 
-    #[test]
-    fn codes_a_real_capture_frame() {
-        let path = "/work/shared/data/basketball_player/basketball_player_fr0011.obj";
-        let Some((p, f)) = read_obj(path) else {
-            println!("skipped: {path} not found");
-            return;
-        };
-        let bits = 12;
-        let (lo, hi) = crate::mesh::bounds(&p).unwrap();
-        let side = (0..3).map(|i| hi[i] - lo[i]).fold(0.0, f64::max);
-        let max = ((1u32 << bits) - 1) as f64;
-        let q: Vec<[u32; 3]> = p
-            .iter()
-            .map(|v| [0, 1, 2].map(|i| ((v[i] - lo[i]) / side * max).round() as u32))
-            .collect();
-        let f: Vec<[u32; 3]> = f
-            .into_iter()
-            .filter(|t| {
-                let k = t.map(|v| q[v as usize]);
-                k[0] != k[1] && k[1] != k[2] && k[2] != k[0]
-            })
-            .collect();
-        report("basketball_player_fr0011", &q, &f, bits);
-        // The real base mesh is a decimated frame: a crude stand-in for that.
-        let (dp, df) = decimate(&p, &f, 5000);
-        let dq: Vec<[u32; 3]> = dp
-            .iter()
-            .map(|v| [0, 1, 2].map(|i| ((v[i] - lo[i]) / side * max).round() as u32))
-            .collect();
-        report("basketball_player_fr0011 decimated", &dq, &df, bits);
-        report(
-            "basketball_player_fr0011 decimated",
-            &dq.iter().map(|v| v.map(|c| c >> 2)).collect::<Vec<_>>(),
-            &df,
-            10,
-        );
+        #[test]
+        #[ignore = "needs ../shared/data"]
+        fn codes_a_real_capture_frame() {
+            let frame = crate::shared_data::read_obj("basketball_player/basketball_player_fr0011.obj");
+            let (p, f) = (frame.positions, frame.faces);
+            let bits = 12;
+            let (lo, hi) = crate::mesh::bounds(&p).unwrap();
+            let side = (0..3).map(|i| hi[i] - lo[i]).fold(0.0, f64::max);
+            let max = ((1u32 << bits) - 1) as f64;
+            let q: Vec<[u32; 3]> = p
+                .iter()
+                .map(|v| [0, 1, 2].map(|i| ((v[i] - lo[i]) / side * max).round() as u32))
+                .collect();
+            let f: Vec<[u32; 3]> = f
+                .into_iter()
+                .filter(|t| {
+                    let k = t.map(|v| q[v as usize]);
+                    k[0] != k[1] && k[1] != k[2] && k[2] != k[0]
+                })
+                .collect();
+            report("basketball_player_fr0011", &q, &f, bits);
+            // The real base mesh is a decimated frame: a crude stand-in for that.
+            let (dp, df) = decimate(&p, &f, 5000);
+            let dq: Vec<[u32; 3]> = dp
+                .iter()
+                .map(|v| [0, 1, 2].map(|i| ((v[i] - lo[i]) / side * max).round() as u32))
+                .collect();
+            report("basketball_player_fr0011 decimated", &dq, &df, bits);
+            report(
+                "basketball_player_fr0011 decimated",
+                &dq.iter().map(|v| v.map(|c| c >> 2)).collect::<Vec<_>>(),
+                &df,
+                10,
+            );
+        }
     }
 
     fn normal(t: [[f64; 3]; 3]) -> [f64; 3] {

@@ -1062,60 +1062,31 @@ mod tests {
         assert_eq!(run(&input, 1000), input);
     }
 
-    fn read_obj(path: &std::path::Path) -> Option<Mesh> {
-        let text = std::fs::read_to_string(path).ok()?;
-        let mut m = Mesh::default();
-        for line in text.lines() {
-            let mut it = line.split_whitespace();
-            match it.next() {
-                Some("v") => {
-                    let c: Vec<f64> = it.take(3).filter_map(|s| s.parse().ok()).collect();
-                    m.positions.push([c[0], c[1], c[2]]);
-                }
-                Some("f") => {
-                    let idx: Vec<u32> = it
-                        .filter_map(|s| s.split('/').next()?.parse::<u32>().ok())
-                        .map(|i| i - 1)
-                        .collect();
-                    for k in 1..idx.len().saturating_sub(1) {
-                        m.faces.push([idx[0], idx[k], idx[k + 1]]);
-                    }
-                }
-                _ => {}
-            }
+    mod shared_data {
+        use super::*;
+
+        #[test]
+        #[ignore = "needs ../shared/data"]
+        fn basketball_frame_decimates_to_an_eighth() {
+            let input = crate::shared_data::read_obj("basketball_player/basketball_player_fr0011.obj");
+            let target = input.faces.len() / 8;
+            let start = std::time::Instant::now();
+            let out = decimate(&input.positions, &input.faces, target);
+            let elapsed = start.elapsed();
+            assert_valid(&out);
+            assert!(out.faces.len() <= target, "{} faces for target {target}", out.faces.len());
+            assert_eq!(components(&out), components(&input), "a component vanished");
+            assert_eq!(decimate(&input.positions, &input.faces, target), out, "not deterministic");
+            println!(
+                "basketball fr0011: {} -> {} faces, {} -> {} vertices, {} -> {} components, in {:.1} ms",
+                input.faces.len(),
+                out.faces.len(),
+                input.positions.len(),
+                out.positions.len(),
+                components(&input),
+                components(&out),
+                elapsed.as_secs_f64() * 1e3
+            );
         }
-        Some(m)
-    }
-
-    const FRAME: &str = "basketball_player_fr0011.obj";
-
-    #[test]
-    fn basketball_frame_decimates_to_an_eighth() {
-        let relative =
-            concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/data/", "basketball_player");
-        let paths =
-            [format!("{relative}/{FRAME}"), format!("/work/shared/data/basketball_player/{FRAME}")];
-        let Some(input) = paths.iter().find_map(|p| read_obj(std::path::Path::new(p))) else {
-            println!("skipped: {FRAME} not found in ../shared/data");
-            return;
-        };
-        let target = input.faces.len() / 8;
-        let start = std::time::Instant::now();
-        let out = decimate(&input.positions, &input.faces, target);
-        let elapsed = start.elapsed();
-        assert_valid(&out);
-        assert!(out.faces.len() <= target, "{} faces for target {target}", out.faces.len());
-        assert_eq!(components(&out), components(&input), "a component vanished");
-        assert_eq!(decimate(&input.positions, &input.faces, target), out, "not deterministic");
-        println!(
-            "basketball fr0011: {} -> {} faces, {} -> {} vertices, {} -> {} components, in {:.1} ms",
-            input.faces.len(),
-            out.faces.len(),
-            input.positions.len(),
-            out.positions.len(),
-            components(&input),
-            components(&out),
-            elapsed.as_secs_f64() * 1e3
-        );
     }
 }

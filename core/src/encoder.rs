@@ -312,6 +312,23 @@ impl SequenceEncoder {
         &self.header
     }
 
+    /// Makes the next frame frame `index`, the first of a group (a multiple of the intra
+    /// period), and forgets the reference and the last intra frame. The first frame of a
+    /// group is intra and reads neither, so from there on this encoder produces the units
+    /// the sequential encoder does, and the groups of a sequence can be encoded apart. Only
+    /// the `same_topology` statistic of that first frame differs: it has no previous input.
+    pub fn start_group(&mut self, index: u32) -> Result<(), InputError> {
+        let period = self.config.intra_period;
+        if index % period != 0 || index >= self.header.frame_count {
+            return Err(InputError(format!(
+                "frame {index} does not start a group: groups start at multiples of the intra period {period} below {}",
+                self.header.frame_count
+            )));
+        }
+        (self.frame, self.reference, self.last_intra) = (index, None, None);
+        Ok(())
+    }
+
     /// Encodes the next frame (in the input's units, inside the header's box).
     pub fn encode(&mut self, mesh: &Mesh) -> Result<EncodedFrame, InputError> {
         let start = Instant::now();

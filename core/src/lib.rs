@@ -37,3 +37,5 @@ pub mod uvcoder;
 pub mod render;
 pub mod transfer;
 pub mod fuzzing;
+#[cfg(test)]
+mod shared_data;

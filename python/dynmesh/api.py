@@ -75,10 +75,10 @@ def _textured(meshes: list[Mesh], option) -> bool:
 
 
 def _place_texture_unit(parts: list[list[bytes]], closed: tuple[int, bytes] | None) -> None:
-    """Puts a closed texture group's unit right after its first frame's unit (``parts[0]``
-    is the header, ``parts[i + 1]`` frame ``i`` and what follows it)."""
+    """Puts a closed texture group's unit right after its first frame's unit (``parts[i]``
+    is the ``i``-th frame coded by the texture encoder and what follows it)."""
     if closed:
-        parts[closed[0] + 1].append(_core.texture_unit(closed[1]))
+        parts[closed[0]].append(_core.texture_unit(closed[1]))
 
 
 def _image_of(m: Mesh) -> np.ndarray:
@@ -92,6 +92,8 @@ def encode_frames(
     on_frame: Callable[[int, dict], None] | None = None,
     texture: bool | str = "auto",
     sequence: tuple[int, np.ndarray, np.ndarray] | None = None,
+    jobs: int = 1,
+    ray: str | None = None,
     **options,
 ) -> EncodeResult:
     """Encodes a sequence (Mesh objects or (positions, faces) pairs) into one stream.
@@ -110,30 +112,77 @@ def encode_frames(
     Textures (``texture``: "auto" codes them when every frame has UVs and a texture image,
     in ``Mesh.image`` or at ``Mesh.texture``): texture_size (atlas side in texels),
     texture_qp (video QP), texture_codec ("hevc" or "av1"); see ``dynmesh.texture``.
+    ``jobs`` > 1 encodes the groups of ``intra_period`` frames in that many local processes,
+    ``ray`` (a Ray cluster address or "auto") as tasks of a Ray cluster; the stream is the
+    same byte for byte (see ``dynmesh.parallel``), and ``on_frame`` is then called for a
+    group's frames when the group is done, in order. The local processes are spawned: a
+    script that calls this needs the ``if __name__ == "__main__":`` guard.
     ``on_frame(index, stats)`` is called after each frame; ``stats["type"]`` is "I" or "P".
     Reconstructions of a textured stream carry their UVs and decoded texture image.
     Raises ValueError for an invalid mesh or option, naming the frame.
     """
-    texture_options = _texture.check_options({k: options.pop(k) for k in list(options) if k in _texture.TEXTURE_DEFAULTS})
-    unknown = set(options) - set(DEFAULTS)
+    opts, texture_options = _split_options(options)
+    count, lo, hi, meshes, textured = _sequence_of(frames, texture, sequence)
+    enc = _encoder(count, lo, hi, opts)
+    if jobs != 1 or ray is not None:
+        from . import parallel  # a cycle otherwise: parallel's workers encode through this module
+
+        groups = parallel.encoded_groups(meshes, (count, lo, hi), opts, texture_options if textured else None,
+                                         keep_reconstructions, jobs, ray)
+        result = EncodeResult(b"")
+        result.data = b"".join(parallel.stream_chunks(enc.header_bytes(), groups, result, on_frame))
+        return result
+    tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions) if textured else None
+    result = encode_units(enc, tex, meshes, 0, count, keep_reconstructions, on_frame)
+    if len(result.frames) != count:
+        raise ValueError(f"{len(result.frames)} frames where {count} were announced")
+    result.data = enc.header_bytes() + result.data
+    return result
+
+
+def _split_options(options: dict) -> tuple[dict, dict]:
+    """(geometry options with the defaults filled in, checked texture options) of the
+    options ``encode_frames`` takes; raises ValueError for an unknown or bad one."""
+    texture_options = _texture.check_options({k: v for k, v in options.items() if k in _texture.TEXTURE_DEFAULTS})
+    geometry = {k: v for k, v in options.items() if k not in _texture.TEXTURE_DEFAULTS}
+    unknown = set(geometry) - set(DEFAULTS)
     if unknown:
         raise ValueError(f"unknown encoder option(s): {', '.join(sorted(unknown))}")
-    opts = {**DEFAULTS, **options}
+    return {**DEFAULTS, **geometry}, texture_options
+
+
+def _sequence_of(frames: Iterable, texture, sequence) -> tuple[int, np.ndarray, np.ndarray, Iterable[Mesh], bool]:
+    """(frame count, box min, box max, the frames as Mesh objects, whether to code
+    textures): measured on the frames, or as ``sequence`` says (see ``encode_frames``)."""
     if sequence is None:
         meshes = [_as_mesh(f) for f in frames]
-        count, (lo, hi), textured = len(meshes), sequence_bounds(meshes), _textured(meshes, texture)
-    else:
-        (count, lo, hi), meshes, textured = sequence, (_as_mesh(f) for f in frames), texture
-        if textured not in (True, False):
-            raise ValueError("texture must be True or False when the sequence is given")
+        return len(meshes), *sequence_bounds(meshes), meshes, _textured(meshes, texture)
+    count, lo, hi = sequence
+    return count, lo, hi, (_as_mesh(f) for f in frames), _given_texture(texture)
+
+
+def _given_texture(texture) -> bool:
+    """``texture`` for a sequence given beforehand, where "auto" cannot look at the frames."""
+    if texture not in (True, False):
+        raise ValueError("texture must be True or False when the sequence is given")
+    return texture
+
+
+def _encoder(count: int, lo, hi, opts: dict) -> _core.Encoder:
     try:
-        enc = _core.Encoder(count, np.asarray(lo, float).tolist(), np.asarray(hi, float).tolist(), opts)
+        return _core.Encoder(count, np.asarray(lo, float).tolist(), np.asarray(hi, float).tolist(), opts)
     except TypeError as e:
         raise ValueError(f"invalid encoder option: {e}") from None
-    tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions) if textured else None
-    parts = [[enc.header_bytes()]]
+
+
+def encode_units(enc: _core.Encoder, tex: _texture.TextureEncoder | None, meshes: Iterable[Mesh], first: int,
+                 count: int, keep_reconstructions: bool, on_frame: Callable[[int, dict], None] | None) -> EncodeResult:
+    """Codes ``meshes`` as frames ``first``, ``first + 1``, ... (below ``count``) of the
+    stream with ``enc`` and ``tex``, which start there: the result's ``data`` is their
+    units, texture units placed, without the sequence header."""
+    parts: list[list[bytes]] = []
     result = EncodeResult(b"")
-    for i, m in enumerate(meshes):
+    for i, m in enumerate(meshes, first):
         if i >= count:
             raise ValueError(f"more than the {count} frames announced")
         try:
@@ -148,13 +197,11 @@ def encode_frames(
             result.reconstructions.append(Mesh(pos, faces))
         if on_frame is not None:
             on_frame(i, stats)
-    if len(result.frames) != count:
-        raise ValueError(f"{len(result.frames)} frames where {count} were announced")
     _place_texture_unit(parts, tex and tex.finish())
     if tex is not None and keep_reconstructions:
         for r, (uv, uv_faces), image in zip(result.reconstructions, tex.uvs, tex.images):
             r.uvs, r.uv_faces, r.image = uv, uv_faces, image
-    result.texture_bytes = sum(len(u) for p in parts[1:] for u in p[1:])
+    result.texture_bytes = sum(len(u) for p in parts for u in p[1:])
     result.data = b"".join(u for p in parts for u in p)
     return result
 
@@ -250,7 +297,8 @@ def metrics(reference, decoded, *, peak: float | None = None, grid_size: int = 1
 
     The sampling grid lies over the bounding box of the whole reference sequence; the
     peak defaults to the largest side of that box. Colour is sampled at the same grid
-    points (bilinear lookup), in BT.709 YCbCr with peak 1. Returns per-frame figures and
+    points (bilinear lookup, each sample rounded to 8 bits as MPEG's mmetric does) and
+    compared in BT.709 YCbCr with peak 1. Returns per-frame figures and
     their means (the sequence figure of the MPEG test conditions).
     """
     refs = [reference] if isinstance(reference, Mesh) else list(reference)

@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import importlib.util
 import json
 import sys
 import tempfile
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from . import api, texture, video
+from . import api, parallel, texture, video
 from .io import MeshError, read_mesh, write_mesh
 from .safety import StagedDirectory, mesh_inputs, refuse_inputs
 from .sequence import SequenceError, resolve_sequence
@@ -73,18 +73,10 @@ def _scan_sequence(paths: list[Path], quiet: bool) -> tuple[np.ndarray, np.ndarr
     return lo, hi, textures, textured
 
 
-def _frames_again(paths: list[Path]):
-    """Second pass: the frames read again, one at a time (their warnings were shown once)."""
-    for p in paths:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            mesh = read_mesh(p)
-        yield mesh
-
-
 def cmd_encode(a) -> dict:
     # Two passes over the files: the header needs the sequence box before the first frame,
     # and holding every frame would make memory grow with the sequence.
+    _check_jobs(a)
     paths = resolve_sequence(a.input, a.start, a.count)
     refuse_inputs(a.output, paths)
     lo, hi, textures, textured = _scan_sequence(paths, a.quiet)
@@ -95,19 +87,24 @@ def cmd_encode(a) -> dict:
         raise ValueError(f"frame {textured.index(False)}: texture coding asks for UVs and a texture image on every frame")
     use_texture = all(textured) if texture_option == "auto" else texture_option
     with _progress(len(paths), "encoding", a.quiet) as bar:
-        result = api.encode_frames(_frames_again(paths), on_frame=lambda i, s: bar.update(), texture=use_texture,
-                                   sequence=(len(paths), lo, hi), **options)
-    api.write_bytes_atomic(a.output, result.data)
+        if a.jobs == 1 and a.ray is None:
+            result = api.encode_frames((parallel.read_again(p) for p in paths), on_frame=lambda i, s: bar.update(),
+                                       texture=use_texture, sequence=(len(paths), lo, hi), **options)
+            api.write_bytes_atomic(a.output, result.data)
+        else:  # the workers read the frames; the stream is written as their groups come
+            result = parallel.encode_to_file(a.output, paths, sequence=(len(paths), lo, hi), texture=use_texture,
+                                             jobs=a.jobs, ray=a.ray, on_frame=lambda i, s: bar.update(), **options)
+    size = Path(a.output).stat().st_size
     frames = [{"frame": i, "input": str(p), **s} for i, (p, s) in enumerate(zip(paths, result.frames))]
-    summary = {"output": str(a.output), "bytes": len(result.data), "texture_bytes": result.texture_bytes,
+    summary = {"output": str(a.output), "bytes": size, "texture_bytes": result.texture_bytes,
                "frames": frames, "options": _encoder_options(a)}
     if not a.json:
         print(_table(frames, [("frame", "frame", "d"), ("type", "type", "s"), ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
                               ("displacement_bytes", "disp B", "d"), ("base_faces", "base faces", "d"),
                               ("output_faces", "out faces", "d"), ("seconds", "seconds", ".3f")]))
         of_texture = f" ({result.texture_bytes} of them texture)" if result.texture_bytes else ""
-        print(f"wrote {a.output}: {len(result.data)} bytes{of_texture}, {len(frames)} frames, "
-              f"{8 * len(result.data) / len(frames) * 30 / 1e6:.3f} Mbit/s at 30 fps")
+        print(f"wrote {a.output}: {size} bytes{of_texture}, {len(frames)} frames, "
+              f"{8 * size / len(frames) * 30 / 1e6:.3f} Mbit/s at 30 fps")
     return summary
 
 
@@ -280,13 +277,26 @@ def _demo_rate(meshes, raw: int, qp: int, work: Path) -> dict:
             "enc_ms": 1000 * enc_s / len(meshes), "dec_ms": 1000 * dec_s / len(meshes)}
 
 
+#: What `dynmesh eval` needs beyond the codec (the `eval` extra): the Draco baseline and the
+#: report's plots.
+EVAL_MODULES = ("DracoPy", "matplotlib")
+
+
+def _require_eval_extra() -> None:
+    """Fails before any work when the `eval` extra is not installed, rather than midway."""
+    missing = [name for name in EVAL_MODULES if importlib.util.find_spec(name) is None]
+    if missing:
+        raise CliError(f"needs {' and '.join(missing)}, which the codec itself does not: "
+                       "pip install 'dynmesh[eval]'")
+
+
 def cmd_eval(a) -> dict:
     from . import evaluate, report
 
+    _require_eval_extra()
     exp = evaluate.load_experiment(a.config)
     out = Path(a.out) if a.out else Path("results") / exp.name
-    if a.jobs < 1:
-        raise CliError(f"--jobs must be at least 1, got {a.jobs}")
+    _check_jobs(a)
     counts = {"reused": 0, "measured": 0}
     start = time.perf_counter()
     if a.report_only:
@@ -307,14 +317,15 @@ def cmd_eval(a) -> dict:
                 bar.update()
                 bar.set_postfix_str("running " + ", ".join(running) if running else "")
 
-            records = evaluate.run_experiment(exp, out, jobs=a.jobs, force=a.force, on_start=started, on_done=done)
+            records = evaluate.run_experiment(exp, out, jobs=a.jobs, ray=a.ray, force=a.force, on_start=started,
+                                               on_done=done)
         results = evaluate.results_document(exp, records)
     seconds = time.perf_counter() - start
     rows = report.bd_rows(results)
     page = None
     if a.report:
         command = " ".join(["dynmesh eval", str(a.config)] + (["--out", str(a.out)] if a.out else [])
-                           + (["--jobs", str(a.jobs)] if a.jobs != 1 else [])
+                           + (["--jobs", str(a.jobs)] if a.jobs != 1 else []) + (["--ray", a.ray] if a.ray else [])
                            + ["--report", str(a.report)] + (["--report-file", a.report_file]
                                                             if a.report_file != "results.md" else []))
         page = report.write_report(results, a.report, a.report_file, command=command)
@@ -331,6 +342,11 @@ def cmd_eval(a) -> dict:
         print(f"{what} in {seconds:.1f} s; results in {out}" + (f"; report {page}" if page else ""))
     return {"out": str(out), "report": str(page) if page else None, "seconds": seconds, **counts,
             "bd_rate": rows, "runs": results["runs"]}
+
+
+def _check_jobs(a) -> None:
+    if a.jobs < 1:
+        raise CliError(f"--jobs must be at least 1, got {a.jobs}")
 
 
 def _read_bytes(path: str) -> bytes:
@@ -353,6 +369,14 @@ def _non_negative(text: str) -> int:
 def _sequence_args(p):
     p.add_argument("--start", type=int, help="first frame (index into the sorted list, or number for a printf pattern)")
     p.add_argument("--count", type=int, help="number of frames")
+
+
+def _parallel_args(p, what: str) -> None:
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--jobs", type=int, default=1, help=f"{what} in parallel, in separate local processes (default 1)")
+    g.add_argument("--ray", metavar="ADDRESS",
+                   help=f"{what} as tasks of the Ray cluster at ADDRESS ('auto': the one this machine is part of), one "
+                        'per CPU; needs pip install "dynmesh[ray]"')
 
 
 def _common(p):
@@ -417,6 +441,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--texture-qp", type=int, default=t["texture_qp"], help=f"texture video QP, 0-51 (default {t['texture_qp']})")
     p.add_argument("--texture-codec", choices=list(video.CODECS), default=t["texture_codec"],
                    help=f"texture video codec: HEVC (libx265) or AV1 (libsvtav1), 10-bit 4:2:0 (default {t['texture_codec']})")
+    _parallel_args(p, "groups of --intra-period frames encoded")
     _common(p)
     p.set_defaults(run=cmd_encode)
 
@@ -484,7 +509,7 @@ def parser() -> argparse.ArgumentParser:
                                    "and optionally write a Markdown report with RD plots. Finished runs are reused.")
     p.add_argument("config", help="experiment file (.toml); paths in it are relative to its directory")
     p.add_argument("--out", help="results directory (default results/<config stem>)")
-    p.add_argument("--jobs", type=int, default=1, help="runs measured in parallel, in separate processes (default 1)")
+    _parallel_args(p, "runs measured")
     p.add_argument("--force", action="store_true", help="measure every run again, even if saved results match")
     p.add_argument("--report", metavar="DIR", help="write a Markdown report with RD plots into DIR")
     p.add_argument("--report-file", default="results.md",
@@ -508,7 +533,8 @@ def main(argv: list[str] | None = None) -> int:
     args.failure = None  # set by a command that did its work but must still exit non-zero
     try:
         result = args.run(args)
-    except (CliError, MeshError, SequenceError, api.DecodeError, ValueError, OSError, MemoryError) as e:
+    except (CliError, MeshError, SequenceError, api.DecodeError, parallel.WorkerError, ValueError, OSError,
+            MemoryError) as e:
         print(f"dynmesh {args.command}: error: {_message(e)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:

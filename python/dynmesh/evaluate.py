@@ -77,22 +77,18 @@ import hashlib
 import io
 import json
 import math
-import multiprocessing
 import os
 import re
 import time
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, wait
 from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
-try:
-    import tomllib
-except ModuleNotFoundError:  # Python 3.10: the same parser, from PyPI
-    import tomli as tomllib
+import tomllib
 
-from . import api, texture
+from . import api, parallel, texture
 from .baselines import Draco, Encoded
 from .io import read_mesh
 from .mesh import Mesh
@@ -572,12 +568,14 @@ def run_experiment(
     out: str | os.PathLike,
     *,
     jobs: int = 1,
+    ray: str | None = None,
     force: bool = False,
     on_start: Callable[[Run], None] | None = None,
     on_done: Callable[[Run, dict, bool], None] | None = None,
 ) -> list[dict]:
     """Measures every run of ``exp`` not already saved in ``out`` (all of them with
-    ``force``), ``jobs`` at a time in separate processes, and returns all records in
+    ``force``), ``jobs`` at a time in separate processes (or as tasks of the Ray cluster at
+    ``ray``, one per CPU; see ``dynmesh.parallel.pool``), and returns all records in
     report order (sequence, variant, rate point), the points of points variants among
     them. ``on_start(run)`` is called when a run is handed to a worker;
     ``on_done(run, record, reused)`` when it is finished or found in the cache (points
@@ -611,28 +609,27 @@ def run_experiment(
         if on_done:
             on_done(run, record, False)
 
-    if jobs <= 1 or len(todo) <= 1:
+    if (jobs <= 1 and ray is None) or len(todo) <= 1:
         for run in todo:
             if on_start:
                 on_start(run)
             finish(run, measure(run))
     else:
-        # spawn, not fork: the parent may already run the core's thread pool (rayon),
-        # which a forked child would inherit in a broken state.
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as pool:
+        pool, workers = parallel.pool(jobs, ray)
+        with pool:
             pending, queue = {}, list(todo)
             try:
                 while queue or pending:
-                    # Keep exactly `jobs` runs in flight, so on_start means "started".
-                    while queue and len(pending) < jobs:
+                    # Keep exactly one run per worker in flight, so on_start means "started".
+                    while queue and len(pending) < workers:
                         run = queue.pop(0)
                         if on_start:
                             on_start(run)
                         pending[pool.submit(measure, run)] = run
                     done, _ = wait(pending, return_when=FIRST_COMPLETED)
                     for fut in done:
-                        finish(pending.pop(fut), fut.result())
+                        run = pending.pop(fut)
+                        finish(run, parallel.result_of(fut, f"run {run.id}"))
             except BaseException:
                 for fut in pending:
                     fut.cancel()

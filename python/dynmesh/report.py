@@ -359,7 +359,8 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
         f"- **Rate**: every byte of the stream (dynmesh: header and all frame units; Draco: the sum of its "
         f"per-frame buffers), as Mbit/s at {results['fps']:g} frames per second"
         + (", texture included (geometry and texture rates apart in the tables); texture PSNR: colour sampled "
-           "bilinearly at the same grid points, BT.709 YCbCr in [0, 1], peak 1, symmetric; Y BD-rates are on the "
+           "bilinearly at the same grid points and rounded to 8 bits as in mmetric, BT.709 YCbCr in [0, 1], peak 1, "
+           "symmetric; Y BD-rates are on the "
            "total rate." if _textured(results) else ". Geometry only."),
         "- **Draco** codes each frame as an independent mesh (DracoPy, positions quantized over the frame's own box); "
         "it reorders and merges vertices, and the harness measures exactly what Draco decodes, like any decoder "
