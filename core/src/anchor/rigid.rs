@@ -19,9 +19,9 @@ use crate::mesh::{add, norm, sub, Mesh};
 /// Closest-point rounds per start, at most: a part turning along itself (a rim, a disc)
 /// creeps towards its fit, a few grid units a round.
 const ROUNDS: usize = 24;
-/// Rounds stop when no point of the part moves more than this (grid units) from one round to
-/// the next.
-const SETTLED: f64 = 1e-2;
+/// Rounds stop when no point of the part moves more than this share of the part's size from
+/// one round to the next.
+const SETTLED: f64 = 1e-5;
 /// The share of pairs, nearest first, that a round's fit uses: where the input's topology
 /// changed (an arm that left the body) the reference has no counterpart and would pull the
 /// part off. Not a multiple of the median: a turning disc or rim slides along itself, so
@@ -153,6 +153,7 @@ fn kept_limit(values: &[f64]) -> f64 {
 fn icp(points: &[[f64; 3]], input: &Bvh, start: Rigid) -> Rigid {
     let mut motion = start;
     let mut hints = vec![u32::MAX; points.len()];
+    let tolerance = crate::mesh::bounds(points).map_or(0.0, |(lo, hi)| norm(sub(hi, lo))) * SETTLED;
     for _ in 0..ROUNDS {
         let pairs: Vec<([f64; 3], [f64; 3], f64)> = points
             .iter()
@@ -169,7 +170,7 @@ fn icp(points: &[[f64; 3]], input: &Bvh, start: Rigid) -> Rigid {
         let limit = kept_limit(&pairs.iter().map(|p| p.2).collect::<Vec<_>>());
         let kept: Vec<([f64; 3], [f64; 3])> = pairs.iter().filter(|p| p.2 <= limit).map(|p| (p.0, p.1)).collect();
         let Some(next) = best_rigid(&kept) else { break };
-        let settled = points.iter().all(|&p| norm(sub(next.apply(p), motion.apply(p))) < SETTLED);
+        let settled = points.iter().all(|&p| norm(sub(next.apply(p), motion.apply(p))) <= tolerance);
         motion = next;
         if settled {
             break;
