@@ -43,12 +43,6 @@ pub struct AnchorParams {
     pub repair_folds: bool,
 }
 
-impl Default for AnchorParams {
-    fn default() -> Self {
-        Self { stages: AnchorStages::NnsMeQem, rigid_align: false, repair_folds: false }
-    }
-}
-
 /// What the anchor of a predicted frame starts from: the reference frame's base mesh, and
 /// what the reference frame knew about it.
 pub struct ReferenceBase<'a> {

@@ -35,6 +35,9 @@ const MIN_PART: usize = 6;
 /// capture sequences cost bits, while a part that turns as a whole is.
 const GAIN: f64 = 0.5;
 
+/// A point and the point it should move to.
+pub type Pair = ([f64; 3], [f64; 3]);
+
 /// A rotation then a translation.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Rigid {
@@ -168,7 +171,7 @@ fn icp(points: &[[f64; 3]], input: &Bvh, start: Rigid) -> Rigid {
             break;
         }
         let limit = kept_limit(&pairs.iter().map(|p| p.2).collect::<Vec<_>>());
-        let kept: Vec<([f64; 3], [f64; 3])> = pairs.iter().filter(|p| p.2 <= limit).map(|p| (p.0, p.1)).collect();
+        let kept: Vec<Pair> = pairs.iter().filter(|p| p.2 <= limit).map(|p| (p.0, p.1)).collect();
         let Some(next) = best_rigid(&kept) else { break };
         let settled = points.iter().all(|&p| norm(sub(next.apply(p), motion.apply(p))) <= tolerance);
         motion = next;
@@ -182,12 +185,12 @@ fn icp(points: &[[f64; 3]], input: &Bvh, start: Rigid) -> Rigid {
 /// The rigid motion taking the first point of each pair closest to the second (least squares,
 /// Kabsch's method; a reflection is turned into the nearest rotation). None for fewer than
 /// three pairs.
-pub fn best_rigid(pairs: &[([f64; 3], [f64; 3])]) -> Option<Rigid> {
+pub fn best_rigid(pairs: &[Pair]) -> Option<Rigid> {
     if pairs.len() < 3 {
         return None;
     }
     let n = pairs.len() as f64;
-    let centroid = |pick: fn(&([f64; 3], [f64; 3])) -> [f64; 3]| -> Vector3<f64> {
+    let centroid = |pick: fn(&Pair) -> [f64; 3]| -> Vector3<f64> {
         pairs.iter().map(|p| Vector3::from(pick(p))).sum::<Vector3<f64>>() / n
     };
     let (cs, ct) = (centroid(|p| p.0), centroid(|p| p.1));
