@@ -79,12 +79,11 @@ pub fn anchor_mesh(reference: &ReferenceBase, input: &Mesh, input_bvh: &Bvh, par
         None => vec![[0.0; 3]; base.positions.len()],
     };
     let on_surface: Vec<[f64; 3]> = base.positions.iter().zip(&offsets).map(|(&p, &o)| sub(p, o)).collect();
-    let start = Mesh::new(on_surface, base.faces.clone());
-    let aligned = params.rigid_align.then(|| rigid::align_parts(&start, input_bvh, reference.motions));
-    let start = match &aligned {
-        Some(a) => Mesh::new(a.positions.clone(), base.faces.clone()),
-        None => start,
-    };
+    let mut start = Mesh::new(on_surface, base.faces.clone());
+    let mut aligned = params.rigid_align.then(|| rigid::align_parts(&start, input_bvh, reference.motions));
+    if let Some(a) = &mut aligned {
+        start.positions = std::mem::take(&mut a.positions);
+    }
     let mut positions = matched(&start, input, input_bvh, params.stages);
     let folds = if params.repair_folds { folds::repair_folds(&start, &mut positions, input_bvh) } else { FoldStats::default() };
     for (v, (p, &o)) in positions.iter_mut().zip(&offsets).enumerate() {
