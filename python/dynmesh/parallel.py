@@ -160,7 +160,16 @@ def pool(jobs: int, ray: str | None) -> tuple[ProcessPoolExecutor | RayPool, int
         raise ValueError(f"jobs must be a positive integer, not {jobs!r}")
     # spawn, not fork: the parent may already run the core's thread pool (rayon), which a
     # forked child would inherit in a broken state.
-    return ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")), jobs
+    return ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_share_cores, initargs=(jobs,)), jobs
+
+
+def _share_cores(jobs: int) -> None:
+    """Gives a local worker's thread pool its share of the cores: N pools of all cores each
+    would spend the CPU they compete for on waking threads that find no work. Runs before
+    the worker's first group starts the pool; a RAYON_NUM_THREADS the user set stands."""
+    if "RAYON_NUM_THREADS" not in os.environ:
+        os.environ["RAYON_NUM_THREADS"] = str(max(1, (os.cpu_count() or 1) // jobs))
 
 
 def encoded_groups(frames: Iterable, sequence: tuple, options: dict, texture_options: dict | None, keep: bool,
