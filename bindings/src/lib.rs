@@ -5,6 +5,8 @@
 
 mod colour;
 mod meshio;
+mod obj;
+mod ply;
 mod transfer;
 mod uv;
 use numpy::ndarray::Array2;

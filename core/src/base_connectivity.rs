@@ -334,7 +334,7 @@ pub(crate) fn connectivity<S: Side>(
     let mut m = ConnModels::new();
     while st.faces.len() < n_faces {
         if s.failed() {
-            return Err(format!("base mesh: connectivity data ends at face {}", st.faces.len()));
+            return Err(format!("connectivity data ends at face {}", st.faces.len()));
         }
         match st.pop_gate() {
             Some(gate) => {
@@ -344,7 +344,7 @@ pub(crate) fn connectivity<S: Side>(
         }
     }
     if st.visited() != n_vertices {
-        return Err(format!("base mesh: {} of {n_vertices} vertices used", st.visited()));
+        return Err(format!("{} of {n_vertices} vertices used", st.visited()));
     }
     Ok(st)
 }
@@ -460,7 +460,7 @@ fn third_vertex<S: Side>(
         Third::Other(c) => c,
     };
     if c == a || c == b || c >= st.visited() {
-        return Err(format!("base mesh: face {} has an impossible vertex", st.faces.len()));
+        return Err(format!("face {} has an impossible vertex", st.faces.len()));
     }
     Ok(c)
 }
@@ -538,14 +538,14 @@ fn seed<S: Side>(
         let back = s.uint(&mut m.seed_index, known.map_or(0, |c| visited.wrapping_sub(1) - c));
         if back >= visited {
             return Err(format!(
-                "base mesh: seed face {} refers to a future vertex",
+                "seed face {} refers to a future vertex",
                 st.faces.len()
             ));
         }
         f[k] = visited - 1 - back;
     }
     if f[0] == f[1] || f[1] == f[2] || f[2] == f[0] {
-        return Err(format!("base mesh: seed face {} repeats a vertex", st.faces.len()));
+        return Err(format!("seed face {} repeats a vertex", st.faces.len()));
     }
     st.add_face(f, None);
     Ok(())

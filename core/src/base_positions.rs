@@ -346,7 +346,7 @@ pub(crate) fn code_positions<S: Side>(
     let max = (1i64 << bits) - 1;
     while let Some(v) = order.next() {
         if s.failed() {
-            return Err(format!("base mesh: position data ends at vertex {v}"));
+            return Err(format!("position data ends at vertex {v}"));
         }
         let nb = neighbourhood(v, &pos, &err, &order.done, faces, &adj);
         let fallback = last.map_or([(1u64 << (bits - 1)) as f64; 3], |u| as_f64(pos[u as usize]));
@@ -358,7 +358,7 @@ pub(crate) fn code_positions<S: Side>(
             pos[v as usize][i] = u32::try_from(ipred[i] + r)
                 .ok()
                 .filter(|&c| c as i64 <= max)
-                .ok_or_else(|| format!("base mesh: vertex {v} lies outside the {bits}-bit grid"))?;
+                .ok_or_else(|| format!("vertex {v} lies outside the {bits}-bit grid"))?;
         }
         if let Some((cen, x)) = features {
             let actual = as_f64(pos[v as usize]);

@@ -59,10 +59,11 @@ fn encode(positions: &[[u32; 3]], faces: &[[u32; 3]], bits: u32, with_positions:
     faces.iter().flatten().for_each(|&v| used[v as usize] = true);
     let n_vertices = used.iter().filter(|&&u| u).count() as u32;
 
-    let mut side = EncSide(Encoder::new());
+    let mut enc = Encoder::new();
     let mut header = UIntModel::new(8);
-    side.0.uint(&mut header, n_vertices);
-    side.0.uint(&mut header, faces.len() as u32);
+    enc.uint(&mut header, n_vertices);
+    enc.uint(&mut header, faces.len() as u32);
+    let mut side = EncSide(&mut enc);
     let mut source = Source::new(&faces, positions.len());
     let conn = connectivity(&mut side, Some(&mut source), n_vertices, faces.len())
         .expect("the encoder's own traversal is consistent");
@@ -71,7 +72,7 @@ fn encode(positions: &[[u32; 3]], faces: &[[u32; 3]], bits: u32, with_positions:
         code_positions(&mut side, &conn.faces, n_vertices as usize, bits, Some(&ordered))
             .expect("the encoder's own positions are in range");
     }
-    let mut out = side.0.finish();
+    let mut out = enc.finish();
     let min_len = if with_positions { faces.len().div_ceil(MAX_FACES_PER_BYTE) } else { 0 };
     if out.len() < min_len {
         out.resize(min_len, 0);
@@ -91,22 +92,23 @@ pub type GridMesh = (Vec<[u32; 3]>, Vec<[u32; 3]>);
 /// memory are bounded by `MAX_FACES_PER_BYTE` faces per input byte.
 pub fn decode_base(data: &[u8], bits: u32) -> Result<GridMesh, String> {
     if !(1..=MAX_BITS).contains(&bits) {
-        return Err(format!("base mesh: position bit depth {bits} out of range"));
+        return Err(format!("position bit depth {bits} out of range"));
     }
-    let mut side = DecSide(Decoder::new(data));
+    let mut dec = Decoder::new(data);
     let mut header = UIntModel::new(8);
-    let n_vertices = side.0.uint(&mut header) as usize;
-    let n_faces = side.0.uint(&mut header) as usize;
-    side.0.finish().map_err(|e| format!("base mesh header: {e}"))?;
+    let n_vertices = dec.uint(&mut header) as usize;
+    let n_faces = dec.uint(&mut header) as usize;
+    dec.finish().map_err(|e| format!("header: {e}"))?;
     if n_faces > data.len().saturating_mul(MAX_FACES_PER_BYTE) {
-        return Err(format!("base mesh: {n_faces} faces cannot fit in {} bytes", data.len()));
+        return Err(format!("{n_faces} faces cannot fit in {} bytes", data.len()));
     }
     if n_vertices > 3 * n_faces || (n_faces > 0 && n_vertices < 3) {
-        return Err(format!("base mesh: {n_vertices} vertices cannot belong to {n_faces} faces"));
+        return Err(format!("{n_vertices} vertices cannot belong to {n_faces} faces"));
     }
+    let mut side = DecSide(&mut dec);
     let conn = connectivity(&mut side, None, n_vertices as u32, n_faces)?;
     let positions = code_positions(&mut side, &conn.faces, n_vertices, bits, None)?;
-    side.0.finish().map_err(|e| format!("base mesh: {e}"))?;
+    dec.finish().map_err(String::from)?;
     Ok((positions, conn.faces))
 }
 

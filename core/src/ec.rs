@@ -335,10 +335,10 @@ pub trait Side {
     fn failed(&self) -> bool;
 }
 
-/// The encoding [`Side`].
-pub struct EncSide(pub Encoder);
+/// The encoding [`Side`], over an encoder that the caller finishes.
+pub struct EncSide<'e>(pub &'e mut Encoder);
 
-impl Side for EncSide {
+impl Side for EncSide<'_> {
     fn bit(&mut self, m: &mut BitModel, v: bool) -> bool {
         self.0.bit(m, v);
         v
@@ -360,10 +360,10 @@ impl Side for EncSide {
     }
 }
 
-/// The decoding [`Side`].
-pub struct DecSide<'a>(pub Decoder<'a>);
+/// The decoding [`Side`], over a decoder that the caller finishes.
+pub struct DecSide<'d, 'a>(pub &'d mut Decoder<'a>);
 
-impl Side for DecSide<'_> {
+impl Side for DecSide<'_, '_> {
     fn bit(&mut self, m: &mut BitModel, _: bool) -> bool {
         self.0.bit(m)
     }

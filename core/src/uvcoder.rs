@@ -75,11 +75,12 @@ fn encode(faces: &[[u32; 3]], positions: Option<&[[f64; 3]]>, uv_faces: &[[u32; 
     assert!(uv_faces.iter().flatten().all(|&i| (i as usize) < uv.len()), "a UV index is beyond the UV list");
     assert!(uv.iter().flatten().all(|&c| (c as u64) < 1u64 << bits), "a UV does not fit in {bits} bits");
     let vertex_count = faces.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
-    let mut side = EncSide(Encoder::new());
+    let mut enc = Encoder::new();
+    let mut side = EncSide(&mut enc);
     let coded = walk(&mut side, &mut Models::new(), faces, positions, vertex_count, bits, Some(Truth::new(uv_faces, uv)))
         .expect("the encoder's own atlas is consistent");
     debug_assert_eq!(canonical_uv(&coded.0, &coded.1), canonical_uv(uv_faces, uv));
-    side.0.finish()
+    enc.finish()
 }
 
 fn decode(data: &[u8], faces: &[[u32; 3]], positions: Option<&[[f64; 3]]>, vertex_count: usize, bits: u32) -> Result<UvAtlas, String> {
@@ -89,9 +90,10 @@ fn decode(data: &[u8], faces: &[[u32; 3]], positions: Option<&[[f64; 3]]>, verte
     if let Some(f) = faces.iter().position(|f| f.iter().any(|&v| v as usize >= vertex_count)) {
         return Err(format!("UV atlas: face {f} refers to a vertex beyond the {vertex_count} vertices"));
     }
-    let mut side = DecSide(Decoder::new(data));
+    let mut dec = Decoder::new(data);
+    let mut side = DecSide(&mut dec);
     let (uv_faces, uv) = walk(&mut side, &mut Models::new(), faces, positions, vertex_count, bits, None)?;
-    side.0.finish().map_err(|e| format!("UV atlas: {e}"))?;
+    dec.finish().map_err(|e| format!("UV atlas: {e}"))?;
     Ok(canonical_uv(&uv_faces, &uv))
 }
 
