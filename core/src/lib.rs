@@ -10,6 +10,7 @@
 
 pub mod error;
 pub mod mesh;
+pub mod bins;
 pub mod weld;
 pub mod limits;
 pub mod ec;

@@ -21,6 +21,7 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
+use crate::bins::Bins;
 use crate::closest::{largest_coordinate, Finder, Hit, Source};
 use crate::mesh::{cross, interpolate, norm, sub};
 use crate::texture::{Texture, UvMesh};
@@ -93,8 +94,7 @@ pub fn transfer_texture(
         rgb.par_chunks_mut(rows).zip(covered.par_chunks_mut(rows)).enumerate().for_each_init(
             || Worker::new(&ctx),
             |worker, (band, (rgb, covered))| {
-                let faces = &bins.faces[bins.starts[band]..bins.starts[band + 1]];
-                worker.band(band * BAND, faces, rgb, covered);
+                worker.band(band * BAND, bins.of(band), rgb, covered);
             },
         );
     }
@@ -135,15 +135,8 @@ impl Context<'_> {
     }
 }
 
-/// Target faces listed per band of rows (compressed rows: band `b` holds
-/// `faces[starts[b]..starts[b + 1]]`, in face order).
-struct Bins {
-    starts: Vec<usize>,
-    faces: Vec<u32>,
-}
-
 /// Sorts the target faces into the bands their covered texels may fall in, so that each band
-/// task visits only its own faces.
+/// task visits only its own faces (in face order).
 fn bin_faces(ctx: &Context) -> Bins {
     let bands = ctx.height.div_ceil(BAND);
     let spans: Vec<Range<u32>> = (0..ctx.target.mesh.faces.len() as u32)
@@ -153,27 +146,7 @@ fn bin_faces(ctx: &Context) -> Bins {
             texels.map_or(0..0, |(_, rows)| (rows.start / BAND) as u32..((rows.end - 1) / BAND + 1) as u32)
         })
         .collect();
-    let counts = spans
-        .par_chunks(1 << 14)
-        .map(|chunk| {
-            let mut counts = vec![0usize; bands];
-            chunk.iter().flat_map(|s| s.clone()).for_each(|b| counts[b as usize] += 1);
-            counts
-        })
-        .reduce(|| vec![0; bands], |a, b| a.iter().zip(&b).map(|(x, y)| x + y).collect());
-    let mut starts = vec![0usize; bands + 1];
-    for b in 0..bands {
-        starts[b + 1] = starts[b] + counts[b];
-    }
-    let mut next = starts.clone();
-    let mut faces = vec![0u32; starts[bands]];
-    for (f, span) in spans.iter().enumerate() {
-        for b in span.clone() {
-            faces[next[b as usize]] = f as u32;
-            next[b as usize] += 1;
-        }
-    }
-    Bins { starts, faces }
+    Bins::new(bands, || spans.iter().enumerate().flat_map(|(f, s)| s.clone().map(move |b| (b, f as u32))))
 }
 
 /// One rayon job's state: the finder and the buffers of a band.
