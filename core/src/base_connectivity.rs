@@ -24,6 +24,7 @@
 //! are dropped, and so are faces with a repeated vertex.
 //!
 
+use crate::error::Corrupt;
 use crate::ec::{BitModel, IntModel, Side, UIntModel};
 use crate::mesh::{edge_key, EdgeMap};
 
@@ -329,12 +330,12 @@ pub(crate) fn connectivity<S: Side>(
     mut source: Option<&mut Source>,
     n_vertices: u32,
     n_faces: usize,
-) -> Result<Conn, String> {
+) -> Result<Conn, Corrupt> {
     let mut st = Conn::default();
     let mut m = ConnModels::new();
     while st.faces.len() < n_faces {
         if s.failed() {
-            return Err(format!("connectivity data ends at face {}", st.faces.len()));
+            return Err(format!("connectivity data ends at face {}", st.faces.len()).into());
         }
         match st.pop_gate() {
             Some(gate) => {
@@ -344,7 +345,7 @@ pub(crate) fn connectivity<S: Side>(
         }
     }
     if st.visited() != n_vertices {
-        return Err(format!("{} of {n_vertices} vertices used", st.visited()));
+        return Err(format!("{} of {n_vertices} vertices used", st.visited()).into());
     }
     Ok(st)
 }
@@ -359,7 +360,7 @@ fn faces_across<S: Side>(
     n_vertices: u32,
     n_faces: usize,
     (a, b): (u32, u32),
-) -> Result<(), String> {
+) -> Result<(), Corrupt> {
     let mut first = true;
     while st.faces.len() < n_faces && !s.failed() {
         let across = source.as_deref_mut().and_then(|src| src.take_across(a, b));
@@ -397,7 +398,7 @@ fn face_across<S: Side>(
     n_vertices: u32,
     (a, b): (u32, u32),
     across: Option<(bool, u32)>,
-) -> Result<(), String> {
+) -> Result<(), Corrupt> {
     let flipped = s.bit(&mut m.flipped, across.is_some_and(|x| x.0));
     let third = across.map(|(_, c)| classify(st, source.as_deref(), a, b, flipped, c));
     let c = third_vertex(s, st, m, n_vertices, (a, b), flipped, third)?;
@@ -438,7 +439,7 @@ fn third_vertex<S: Side>(
     (a, b): (u32, u32),
     flipped: bool,
     third: Option<Third>,
-) -> Result<u32, String> {
+) -> Result<u32, Corrupt> {
     let (n_next, n_prev) = {
         let (next, prev) = st.candidates(a, b, flipped);
         (next.len(), prev.len())
@@ -460,7 +461,7 @@ fn third_vertex<S: Side>(
         Third::Other(c) => c,
     };
     if c == a || c == b || c >= st.visited() {
-        return Err(format!("face {} has an impossible vertex", st.faces.len()));
+        return Err(format!("face {} has an impossible vertex", st.faces.len()).into());
     }
     Ok(c)
 }
@@ -522,7 +523,7 @@ fn seed<S: Side>(
     m: &mut ConnModels,
     mut source: Option<&mut Source>,
     n_vertices: u32,
-) -> Result<(), String> {
+) -> Result<(), Corrupt> {
     let orig = source.as_deref_mut().and_then(|src| src.take_seed());
     let mut f = [0u32; 3];
     for k in 0..3 {
@@ -537,15 +538,12 @@ fn seed<S: Side>(
         }
         let back = s.uint(&mut m.seed_index, known.map_or(0, |c| visited.wrapping_sub(1) - c));
         if back >= visited {
-            return Err(format!(
-                "seed face {} refers to a future vertex",
-                st.faces.len()
-            ));
+            return Err(format!("seed face {} refers to a future vertex", st.faces.len()).into());
         }
         f[k] = visited - 1 - back;
     }
     if f[0] == f[1] || f[1] == f[2] || f[2] == f[0] {
-        return Err(format!("seed face {} repeats a vertex", st.faces.len()));
+        return Err(format!("seed face {} repeats a vertex", st.faces.len()).into());
     }
     st.add_face(f, None);
     Ok(())

@@ -13,6 +13,7 @@
 //! kind of prediction (none, centroid, one parallelogram, several).
 //!
 
+use crate::error::Corrupt;
 use crate::ec::{IntModel, Side};
 use crate::mesh::{dot, edge_key, sub};
 
@@ -335,7 +336,7 @@ pub(crate) fn code_positions<S: Side>(
     n: usize,
     bits: u32,
     enc: Option<&[[u32; 3]]>,
-) -> Result<Vec<[u32; 3]>, String> {
+) -> Result<Vec<[u32; 3]>, Corrupt> {
     let adj = Adjacency::new(faces, n);
     let mut models: Vec<IntModel> = (0..PRED_KINDS * 3).map(|_| IntModel::new(2)).collect();
     let mut pos = vec![[0u32; 3]; n];
@@ -346,7 +347,7 @@ pub(crate) fn code_positions<S: Side>(
     let max = (1i64 << bits) - 1;
     while let Some(v) = order.next() {
         if s.failed() {
-            return Err(format!("position data ends at vertex {v}"));
+            return Err(format!("position data ends at vertex {v}").into());
         }
         let nb = neighbourhood(v, &pos, &err, &order.done, faces, &adj);
         let fallback = last.map_or([(1u64 << (bits - 1)) as f64; 3], |u| as_f64(pos[u as usize]));
@@ -358,7 +359,7 @@ pub(crate) fn code_positions<S: Side>(
             pos[v as usize][i] = u32::try_from(ipred[i] + r)
                 .ok()
                 .filter(|&c| c as i64 <= max)
-                .ok_or_else(|| format!("vertex {v} lies outside the {bits}-bit grid"))?;
+                .ok_or_else(|| Corrupt(format!("vertex {v} lies outside the {bits}-bit grid")))?;
         }
         if let Some((cen, x)) = features {
             let actual = as_f64(pos[v as usize]);

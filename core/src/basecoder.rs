@@ -20,6 +20,7 @@
 //! The canonical mesh is the decoder's: vertices numbered in order of creation by the
 //! traversal, faces in traversal order.
 
+use crate::error::Corrupt;
 use crate::base_connectivity::{connectivity, Source};
 use crate::base_positions::code_positions;
 use crate::ec::{DecSide, Decoder, EncSide, Encoder, UIntModel};
@@ -90,25 +91,25 @@ pub type GridMesh = (Vec<[u32; 3]>, Vec<[u32; 3]>);
 /// Never panics; returns `Err(reason)` for any stream the encoder cannot have written (as far
 /// as it can tell: a corrupted stream may also decode to some other valid mesh). Work and
 /// memory are bounded by `MAX_FACES_PER_BYTE` faces per input byte.
-pub fn decode_base(data: &[u8], bits: u32) -> Result<GridMesh, String> {
+pub fn decode_base(data: &[u8], bits: u32) -> Result<GridMesh, Corrupt> {
     if !(1..=MAX_BITS).contains(&bits) {
-        return Err(format!("position bit depth {bits} out of range"));
+        return Err(format!("position bit depth {bits} out of range").into());
     }
     let mut dec = Decoder::new(data);
     let mut header = UIntModel::new(8);
     let n_vertices = dec.uint(&mut header) as usize;
     let n_faces = dec.uint(&mut header) as usize;
-    dec.finish().map_err(|e| format!("header: {e}"))?;
+    dec.finish().map_err(|e| Corrupt(format!("header: {e}")))?;
     if n_faces > data.len().saturating_mul(MAX_FACES_PER_BYTE) {
-        return Err(format!("{n_faces} faces cannot fit in {} bytes", data.len()));
+        return Err(format!("{n_faces} faces cannot fit in {} bytes", data.len()).into());
     }
     if n_vertices > 3 * n_faces || (n_faces > 0 && n_vertices < 3) {
-        return Err(format!("{n_vertices} vertices cannot belong to {n_faces} faces"));
+        return Err(format!("{n_vertices} vertices cannot belong to {n_faces} faces").into());
     }
     let mut side = DecSide(&mut dec);
     let conn = connectivity(&mut side, None, n_vertices as u32, n_faces)?;
     let positions = code_positions(&mut side, &conn.faces, n_vertices, bits, None)?;
-    dec.finish().map_err(String::from)?;
+    dec.finish()?;
     Ok((positions, conn.faces))
 }
 
@@ -326,7 +327,7 @@ mod tests {
         encode_base(&p, &f, 10)
     }
 
-    fn check_valid(r: &Result<IntMesh, String>, bits: u32) {
+    fn check_valid(r: &Result<IntMesh, Corrupt>, bits: u32) {
         if let Ok((p, f)) = r {
             assert!(f.iter().flatten().all(|&v| (v as usize) < p.len()));
             assert!(f.iter().all(|t| t[0] != t[1] && t[1] != t[2] && t[2] != t[0]));

@@ -11,6 +11,8 @@
 //! count they decode, so a hostile stream costs at most as much work as its length
 //! justifies.
 
+use crate::error::Corrupt;
+
 const PROB_BITS: u32 = 16;
 const PROB_ONE: u32 = 1 << PROB_BITS;
 const TOP: u32 = 1 << 24;
@@ -307,11 +309,11 @@ impl<'a> Decoder<'a> {
     }
 
     /// `Err` with a reason if the decoder read past its input or met an impossible code.
-    pub fn finish(&self) -> Result<(), &'static str> {
+    pub fn finish(&self) -> Result<(), Corrupt> {
         if self.corrupt {
-            Err("impossible entropy-coded value")
+            Err("impossible entropy-coded value".into())
         } else if self.overrun > 4 {
-            Err("entropy-coded data ends early")
+            Err("entropy-coded data ends early".into())
         } else {
             Ok(())
         }

@@ -16,6 +16,7 @@
 //! candidate across an edge continues this face smoothly: seams follow creases.
 //!
 
+use crate::error::Corrupt;
 use crate::ec::Side;
 use crate::mesh::{dot, edge_key, sub};
 use crate::uvcoder::{Atlas, Models, Truth, BEND_COS};
@@ -36,7 +37,7 @@ pub(crate) fn decide_corners<S: Side>(
     atlas: &Atlas,
     face: &[u32; 3],
     mut truth: Option<(&mut Truth, usize)>,
-) -> Result<[u32; 3], String> {
+) -> Result<[u32; 3], Corrupt> {
     let coded = atlas.uv.len() as u32;
     let mut ids = [u32::MAX; 3];
     let mut pending = 0u32;
@@ -161,7 +162,7 @@ fn code_choice<S: Side>(
     cx: CornerContext,
     total: u32,
     wanted: Choice,
-) -> Result<Choice, String> {
+) -> Result<Choice, Corrupt> {
     if ranked.is_empty() {
         if side.bit(&mut models.fresh, wanted == Choice::New) {
             return Ok(Choice::New);
@@ -189,7 +190,7 @@ fn code_choice<S: Side>(
     };
     let i = side.bypass(index, index_bits(total));
     if i >= total {
-        return Err(format!("UV atlas: a corner refers to UV {i} of {total}"));
+        return Err(format!("UV atlas: a corner refers to UV {i} of {total}").into());
     }
     Ok(Choice::Existing(i))
 }

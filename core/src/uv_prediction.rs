@@ -14,6 +14,7 @@
 //! an xatlas atlas (on basketball_player's base mesh: 16.1 → 7.6 bits per UV).
 //!
 
+use crate::error::Corrupt;
 use crate::ec::{IntModel, Side};
 use crate::mesh::{cross, dot, edge_key, sub};
 use crate::uvcoder::{Atlas, Models};
@@ -61,7 +62,7 @@ pub(crate) fn code_new_uvs<S: Side>(
     ids: [u32; 3],
     values: Option<[[u32; 2]; 3]>,
     bits: u32,
-) -> Result<(), String> {
+) -> Result<(), Corrupt> {
     let max = (1u32 << bits) - 1;
     let first_new = atlas.uv.len() as u32;
     let mut known: [Option<[u32; 2]>; 3] = ids.map(|i| (i < first_new).then(|| atlas.uv[i as usize]));
@@ -87,13 +88,13 @@ pub(crate) fn code_new_uvs<S: Side>(
 
 /// Codes `truth - prediction` per axis; returns the UV it stands for, which must be on the
 /// grid.
-fn code_residual<S: Side>(side: &mut S, models: &mut [IntModel; 2], prediction: [u32; 2], truth: [u32; 2], max: u32) -> Result<[u32; 2], String> {
+fn code_residual<S: Side>(side: &mut S, models: &mut [IntModel; 2], prediction: [u32; 2], truth: [u32; 2], max: u32) -> Result<[u32; 2], Corrupt> {
     let mut value = [0u32; 2];
     for axis in 0..2 {
         let residual = truth[axis] as i32 - prediction[axis] as i32;
         let v = prediction[axis] as i64 + side.int(&mut models[axis], residual) as i64;
         if !(0..=max as i64).contains(&v) {
-            return Err(format!("UV atlas: a UV coordinate {v} outside 0..={max}"));
+            return Err(format!("UV atlas: a UV coordinate {v} outside 0..={max}").into());
         }
         value[axis] = v as u32;
     }

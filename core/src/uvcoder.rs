@@ -14,6 +14,7 @@
 //! only thing the coding does not keep. Decoding does a bounded amount of work per face of
 //! the caller's mesh, whatever the data, and allocates nothing the faces cannot reference.
 
+use crate::error::Corrupt;
 use crate::ec::{BitModel, DecSide, Decoder, EncSide, Encoder, IntModel, Side};
 use crate::mesh::{dot, edge_key, sub, EdgeMap};
 use crate::uv_corners::{decide_corners, squared_distance};
@@ -47,7 +48,7 @@ pub fn encode_uv(faces: &[[u32; 3]], uv_faces: &[[u32; 3]], uv: &[[u32; 2]], bit
 /// at or beyond `vertex_count`, or the data is truncated or impossible (a corrupted block may
 /// also decode to some other atlas of the right shape). Work and memory are linear in the
 /// face count, whatever the data.
-pub fn decode_uv(data: &[u8], faces: &[[u32; 3]], vertex_count: usize, bits: u32) -> Result<UvAtlas, String> {
+pub fn decode_uv(data: &[u8], faces: &[[u32; 3]], vertex_count: usize, bits: u32) -> Result<UvAtlas, Corrupt> {
     decode(data, faces, None, vertex_count, bits)
 }
 
@@ -65,7 +66,7 @@ pub fn encode_uv_with_positions(positions: &[[f64; 3]], faces: &[[u32; 3]], uv_f
 /// Inverse of [`encode_uv_with_positions`] for the same `positions`, `faces` and `bits`;
 /// errors as [`decode_uv`] (the vertex count is `positions.len()`). Positions that are not
 /// finite only weaken the prediction.
-pub fn decode_uv_with_positions(data: &[u8], positions: &[[f64; 3]], faces: &[[u32; 3]], bits: u32) -> Result<UvAtlas, String> {
+pub fn decode_uv_with_positions(data: &[u8], positions: &[[f64; 3]], faces: &[[u32; 3]], bits: u32) -> Result<UvAtlas, Corrupt> {
     decode(data, faces, Some(positions), positions.len(), bits)
 }
 
@@ -83,17 +84,17 @@ fn encode(faces: &[[u32; 3]], positions: Option<&[[f64; 3]]>, uv_faces: &[[u32; 
     enc.finish()
 }
 
-fn decode(data: &[u8], faces: &[[u32; 3]], positions: Option<&[[f64; 3]]>, vertex_count: usize, bits: u32) -> Result<UvAtlas, String> {
+fn decode(data: &[u8], faces: &[[u32; 3]], positions: Option<&[[f64; 3]]>, vertex_count: usize, bits: u32) -> Result<UvAtlas, Corrupt> {
     if !(1..=MAX_UV_BITS).contains(&bits) {
-        return Err(format!("UV atlas: bit depth {bits} out of range"));
+        return Err(format!("UV atlas: bit depth {bits} out of range").into());
     }
     if let Some(f) = faces.iter().position(|f| f.iter().any(|&v| v as usize >= vertex_count)) {
-        return Err(format!("UV atlas: face {f} refers to a vertex beyond the {vertex_count} vertices"));
+        return Err(format!("UV atlas: face {f} refers to a vertex beyond the {vertex_count} vertices").into());
     }
     let mut dec = Decoder::new(data);
     let mut side = DecSide(&mut dec);
     let (uv_faces, uv) = walk(&mut side, &mut Models::new(), faces, positions, vertex_count, bits, None)?;
-    dec.finish().map_err(|e| format!("UV atlas: {e}"))?;
+    dec.finish().map_err(|e| Corrupt(format!("UV atlas: {e}")))?;
     Ok(canonical_uv(&uv_faces, &uv))
 }
 
@@ -198,7 +199,7 @@ fn walk<S: Side>(
     vertex_count: usize,
     bits: u32,
     mut truth: Option<Truth>,
-) -> Result<UvAtlas, String> {
+) -> Result<UvAtlas, Corrupt> {
     // Only vertices some face uses need a list: a caller's vertex count is not trusted to be small.
     let used_vertices = faces.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0).min(vertex_count);
     let mut atlas = Atlas {
@@ -416,10 +417,10 @@ mod tests {
     fn bad_arguments_are_errors() {
         let Sheet { faces, uv_faces, uv, positions } = seamed_sheet(4, 4, 2);
         let data = encode_uv(&faces, &uv_faces, &uv, 12);
-        assert!(decode_uv_with_positions(&data, &positions[..15], &faces, 12).unwrap_err().contains("beyond"));
-        assert!(decode_uv(&data, &faces, 16, 0).unwrap_err().contains("bit depth"));
-        assert!(decode_uv(&data, &faces, 16, 17).unwrap_err().contains("bit depth"));
-        assert!(decode_uv(&data, &faces, 15, 12).unwrap_err().contains("beyond"));
+        assert!(decode_uv_with_positions(&data, &positions[..15], &faces, 12).unwrap_err().0.contains("beyond"));
+        assert!(decode_uv(&data, &faces, 16, 0).unwrap_err().0.contains("bit depth"));
+        assert!(decode_uv(&data, &faces, 16, 17).unwrap_err().0.contains("bit depth"));
+        assert!(decode_uv(&data, &faces, 15, 12).unwrap_err().0.contains("beyond"));
         assert!(decode_uv(&data, &faces, usize::MAX, 12).is_ok());
     }
 
@@ -439,7 +440,7 @@ mod tests {
         for len in 0..data.len() {
             match decode_uv(&data[..len], &faces, n, 12) {
                 Ok(out) => check_shape(&faces, &out, 12),
-                Err(e) => assert!(e.starts_with("UV atlas"), "{e}"),
+                Err(e) => assert!(e.0.starts_with("UV atlas"), "{e}"),
             }
         }
         assert!(decode_uv(&data[..data.len() / 2], &faces, n, 12).is_err());
