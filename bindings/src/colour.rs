@@ -13,7 +13,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use dynmesh::mesh::Mesh;
-use dynmesh::metrics::{self, SamplingGrid};
+use dynmesh::metrics;
+use dynmesh::sampling::SamplingGrid;
 use dynmesh::render::View;
 use dynmesh::texture::{self, Texture, UvMesh};
 

@@ -5,6 +5,8 @@
 
 mod colour;
 mod meshio;
+mod obj;
+mod ply;
 mod transfer;
 mod uv;
 use numpy::ndarray::Array2;
@@ -20,6 +22,7 @@ use dynmesh::encoder::{EncoderConfig, FrameStats, InterMode, LiftingChoice, Sequ
 use dynmesh::error::DecodeError as CoreDecodeError;
 use dynmesh::mesh::Mesh;
 use dynmesh::metrics;
+use dynmesh::sampling;
 use dynmesh::subdivide::SchemeChoice;
 
 create_exception!(_core, DecodeError, PyValueError, "A stream that cannot be decoded; args are (message, frame or None, byte offset).");
@@ -302,7 +305,7 @@ fn mesh_distortion(
     let grid = colour::grid_of(box_min, box_max, grid_size)?;
     py.allow_threads(|| check_sampling(&a, &b, &grid))?;
     let d = py.allow_threads(|| {
-        let (pa, pb) = rayon::join(|| metrics::sample_grid(&a.positions, &a.faces, &grid), || metrics::sample_grid(&b.positions, &b.faces, &grid));
+        let (pa, pb) = rayon::join(|| sampling::sample_grid(&a.positions, &a.faces, &grid), || sampling::sample_grid(&b.positions, &b.faces, &grid));
         metrics::distortion(&pa, &pb)
     });
     check_measured(&[d.d1_mse, d.d2_mse])?;
@@ -316,9 +319,9 @@ pub(crate) const MAX_SAMPLE_RAYS: u64 = 1 << 25;
 
 /// Refuses a comparison whose sampling would be empty on either side (nothing to measure)
 /// or exceed [`MAX_SAMPLE_RAYS`], before any sample is made.
-pub(crate) fn check_sampling(reference: &Mesh, decoded: &Mesh, grid: &metrics::SamplingGrid) -> PyResult<()> {
+pub(crate) fn check_sampling(reference: &Mesh, decoded: &Mesh, grid: &sampling::SamplingGrid) -> PyResult<()> {
     for (what, m) in [("reference", reference), ("decoded", decoded)] {
-        let rays = metrics::ray_count(&m.positions, &m.faces, grid);
+        let rays = sampling::ray_count(&m.positions, &m.faces, grid);
         if rays == 0 {
             return Err(PyValueError::new_err(format!(
                 "the {what} mesh has no surface to sample (all {} faces are degenerate or empty)",

@@ -56,7 +56,7 @@ fn transfer_texture<'py>(
     let (image, covered) = py.allow_threads(|| {
         let mut t = dynmesh::transfer::transfer_texture(&target, &source, &texture, width, height);
         if pad {
-            dynmesh::transfer::pad(&mut t.texture, &t.covered);
+            dynmesh::pad::pad(&mut t.texture, &t.covered);
         }
         let covered = t.covered.iter().filter(|&&c| c).count() as f64 / t.covered.len() as f64;
         (t.texture, covered)

@@ -81,7 +81,7 @@ fn decode_uv<'py>(
             Some(p) => uvcoder::decode_uv_with_positions(data, p, &faces, bits),
             None => uvcoder::decode_uv(data, &faces, vertex_count, bits),
         })
-        .map_err(PyValueError::new_err)?;
+        .map_err(|e| PyValueError::new_err(e.0))?;
     Ok(atlas_arrays(py, decoded))
 }
 

@@ -7,7 +7,7 @@
 //! flag's context also counts how many of the vertex's two parents had a non-zero
 //! coefficient: detail tends to cluster, and the parents are always decoded first.
 
-use crate::ec::{BitModel, Decoder, Encoder, UIntModel};
+use crate::ec::{BitModel, DecSide, Decoder, EncSide, Encoder, Side, UIntModel};
 use crate::subdivide::Subdivision;
 
 /// Contexts of one (level, component) pair.
@@ -34,52 +34,45 @@ impl Contexts {
     }
 }
 
-/// Writes `q` (vertex-major, `comps` values per vertex of `s`).
+/// Writes `q` (vertex-major, `comps` values per vertex of `s`). Panics on a coefficient of
+/// `i32::MIN`, which no decoder could read back.
 pub fn encode(enc: &mut Encoder, q: &[i32], comps: usize, s: &Subdivision) {
-    for level in 0..s.lod_count() {
-        let range = s.lod_offsets[level]..s.lod_offsets[level + 1];
-        for k in 0..comps {
-            let mut cx = Contexts::new();
-            let all_zero = range.clone().all(|v| q[v * comps + k] == 0);
-            enc.bit(&mut cx.all_zero, all_zero);
-            if all_zero {
-                continue;
-            }
-            let mut prev = 0;
-            for v in range.clone() {
-                let ctx = zero_context(q, comps, k, v, level, s, prev);
-                let c = q[v * comps + k];
-                encode_coefficient(enc, &mut cx, ctx, c);
-                prev = c;
-            }
-        }
-    }
+    let mut q = q.to_vec();
+    code(&mut EncSide(enc), &mut q, comps, s).expect("coefficients above i32::MIN in magnitude");
 }
 
 /// Reads what [`encode`] wrote for the subdivision `s`. Returns `None` when the coded data
 /// runs out or is impossible; the caller reports where.
 pub fn decode(dec: &mut Decoder, comps: usize, s: &Subdivision) -> Option<Vec<i32>> {
     let mut q = vec![0i32; s.positions.len() * comps];
+    code(&mut DecSide(dec), &mut q, comps, s)?;
+    dec.finish().ok().map(|_| q)
+}
+
+/// Codes `q` level by level, component by component: the encoder's values, or zeros that the
+/// decoder fills in. `None` once the decoder has run out of data.
+fn code<S: Side>(side: &mut S, q: &mut [i32], comps: usize, s: &Subdivision) -> Option<()> {
     for level in 0..s.lod_count() {
         let range = s.lod_offsets[level]..s.lod_offsets[level + 1];
         for k in 0..comps {
             let mut cx = Contexts::new();
-            if dec.bit(&mut cx.all_zero) {
+            let all_zero = range.clone().all(|v| q[v * comps + k] == 0);
+            if side.bit(&mut cx.all_zero, all_zero) {
                 continue;
             }
             let mut prev = 0;
             for v in range.clone() {
-                let ctx = zero_context(&q, comps, k, v, level, s, prev);
-                let c = decode_coefficient(dec, &mut cx, ctx)?;
+                let ctx = zero_context(q, comps, k, v, level, s, prev);
+                let c = coefficient(side, &mut cx, ctx, q[v * comps + k])?;
                 q[v * comps + k] = c;
                 prev = c;
             }
-            if dec.exhausted() {
+            if side.failed() {
                 return None;
             }
         }
     }
-    dec.finish().ok().map(|_| q)
+    Some(())
 }
 
 fn zero_context(q: &[i32], comps: usize, k: usize, v: usize, level: usize, s: &Subdivision, prev: i32) -> usize {
@@ -90,32 +83,19 @@ fn zero_context(q: &[i32], comps: usize, k: usize, v: usize, level: usize, s: &S
     (q[a as usize * comps + k] != 0) as usize + (q[b as usize * comps + k] != 0) as usize
 }
 
-fn encode_coefficient(enc: &mut Encoder, cx: &mut Contexts, ctx: usize, c: i32) {
-    enc.bit(&mut cx.zero[ctx], c != 0);
-    if c == 0 {
-        return;
-    }
-    enc.bit(&mut cx.sign, c < 0);
-    let m = c.unsigned_abs();
-    enc.bit(&mut cx.gt1, m > 1);
-    if m > 1 {
-        enc.bit(&mut cx.gt2, m > 2);
-        if m > 2 {
-            enc.uint(&mut cx.remainder, m - 3);
-        }
-    }
-}
-
-fn decode_coefficient(dec: &mut Decoder, cx: &mut Contexts, ctx: usize) -> Option<i32> {
-    if !dec.bit(&mut cx.zero[ctx]) {
+/// Codes one coefficient `c` (the decoder passes 0): zero flag, sign, >1, >2, remainder.
+/// `None` for a decoded magnitude beyond `i32`.
+fn coefficient<S: Side>(side: &mut S, cx: &mut Contexts, ctx: usize, c: i32) -> Option<i32> {
+    if !side.bit(&mut cx.zero[ctx], c != 0) {
         return Some(0);
     }
-    let negative = dec.bit(&mut cx.sign);
+    let negative = side.bit(&mut cx.sign, c < 0);
+    let magnitude = c.unsigned_abs();
     let mut m: u64 = 1;
-    if dec.bit(&mut cx.gt1) {
+    if side.bit(&mut cx.gt1, magnitude > 1) {
         m = 2;
-        if dec.bit(&mut cx.gt2) {
-            m = 3 + dec.uint(&mut cx.remainder) as u64;
+        if side.bit(&mut cx.gt2, magnitude > 2) {
+            m = 3 + side.uint(&mut cx.remainder, magnitude.saturating_sub(3)) as u64;
         }
     }
     let m = i32::try_from(m).ok()?;

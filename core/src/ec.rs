@@ -11,6 +11,8 @@
 //! count they decode, so a hostile stream costs at most as much work as its length
 //! justifies.
 
+use crate::error::Corrupt;
+
 const PROB_BITS: u32 = 16;
 const PROB_ONE: u32 = 1 << PROB_BITS;
 const TOP: u32 = 1 << 24;
@@ -307,11 +309,11 @@ impl<'a> Decoder<'a> {
     }
 
     /// `Err` with a reason if the decoder read past its input or met an impossible code.
-    pub fn finish(&self) -> Result<(), &'static str> {
+    pub fn finish(&self) -> Result<(), Corrupt> {
         if self.corrupt {
-            Err("impossible entropy-coded value")
+            Err("impossible entropy-coded value".into())
         } else if self.overrun > 4 {
-            Err("entropy-coded data ends early")
+            Err("entropy-coded data ends early".into())
         } else {
             Ok(())
         }
@@ -335,10 +337,10 @@ pub trait Side {
     fn failed(&self) -> bool;
 }
 
-/// The encoding [`Side`].
-pub struct EncSide(pub Encoder);
+/// The encoding [`Side`], over an encoder that the caller finishes.
+pub struct EncSide<'e>(pub &'e mut Encoder);
 
-impl Side for EncSide {
+impl Side for EncSide<'_> {
     fn bit(&mut self, m: &mut BitModel, v: bool) -> bool {
         self.0.bit(m, v);
         v
@@ -360,10 +362,10 @@ impl Side for EncSide {
     }
 }
 
-/// The decoding [`Side`].
-pub struct DecSide<'a>(pub Decoder<'a>);
+/// The decoding [`Side`], over a decoder that the caller finishes.
+pub struct DecSide<'d, 'a>(pub &'d mut Decoder<'a>);
 
-impl Side for DecSide<'_> {
+impl Side for DecSide<'_, '_> {
     fn bit(&mut self, m: &mut BitModel, _: bool) -> bool {
         self.0.bit(m)
     }

@@ -21,6 +21,25 @@ impl DecodeError {
     }
 }
 
+/// Why a coded block (the base mesh, a UV atlas, range-coded data) cannot be decoded: the
+/// one error of the block decoders. The caller names the block's place in the stream (a
+/// [`DecodeError`] with frame and offset, or the texture unit).
+#[derive(Debug, Clone, PartialEq, Eq, Error)]
+#[error("{0}")]
+pub struct Corrupt(pub String);
+
+impl From<&'static str> for Corrupt {
+    fn from(reason: &'static str) -> Self {
+        Self(reason.into())
+    }
+}
+
+impl From<String> for Corrupt {
+    fn from(reason: String) -> Self {
+        Self(reason)
+    }
+}
+
 /// Input that the encoder refuses (a malformed mesh or an option out of range).
 #[derive(Debug, Clone, PartialEq, Eq, Error)]
 #[error("{0}")]

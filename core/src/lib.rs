@@ -10,12 +10,15 @@
 
 pub mod error;
 pub mod mesh;
+pub mod bins;
 pub mod weld;
 pub mod limits;
 pub mod ec;
 pub mod grid;
 pub mod quadric;
 pub mod decimate;
+pub mod base_connectivity;
+pub mod base_positions;
 pub mod basecoder;
 pub mod anchor;
 pub mod motion;
@@ -31,11 +34,16 @@ pub mod bitstream;
 pub mod resync;
 pub mod encoder;
 pub mod decoder;
+pub mod sampling;
 pub mod metrics;
 pub mod texture;
+pub mod uv_corners;
+pub mod uv_prediction;
 pub mod uvcoder;
 pub mod render;
+pub mod closest;
 pub mod transfer;
+pub mod pad;
 pub mod fuzzing;
 #[cfg(test)]
 mod shared_data;

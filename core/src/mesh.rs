@@ -3,6 +3,8 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
+use rayon::prelude::*;
+
 use crate::error::InputError;
 
 /// The key of the undirected edge `{a, b}`.
@@ -110,6 +112,13 @@ pub fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
 }
 
+/// Squared distance from `a` to `b`.
+#[inline]
+pub fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
+    let d = sub(a, b);
+    dot(d, d)
+}
+
 #[inline]
 pub fn norm(a: [f64; 3]) -> f64 {
     dot(a, a).sqrt()
@@ -142,7 +151,9 @@ pub fn vertex_normals(positions: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<[f64; 3
 }
 
 /// Neighbour lists of a face list over `n` vertices (indices in range), sorted and without repeats
-/// (compressed rows: neighbours of `v` are `adj[start[v]..start[v + 1]]`).
+/// (compressed rows: neighbours of `v` are `adj[start[v]..start[v + 1]]`). The one vertex
+/// adjacency of the codec: motion coding, the displacement refinement and the adaptive
+/// quantization's valences (on every decoded frame's subdivided mesh) read it.
 pub struct Adjacency {
     start: Vec<usize>,
     adj: Vec<u32>,
@@ -150,29 +161,64 @@ pub struct Adjacency {
 
 impl Adjacency {
     pub fn new(n: usize, faces: &[[u32; 3]]) -> Self {
-        let mut lists = vec![Vec::new(); n];
+        // One array laid out by a counting pass (no per-vertex allocation), each row then
+        // sorted and deduplicated in parallel, and the rows closed up.
+        let mut start = vec![0usize; n + 1];
         for f in faces {
-            for k in 0..3 {
-                let (a, b) = (f[k] as usize, f[(k + 1) % 3] as usize);
-                lists[a].push(b as u32);
-                lists[b].push(a as u32);
+            for &v in f {
+                start[v as usize + 1] += 2;
             }
         }
-        let mut start = Vec::with_capacity(n + 1);
-        let mut adj = Vec::new();
-        start.push(0);
-        for mut l in lists {
-            l.sort_unstable();
-            l.dedup();
-            adj.extend(l);
-            start.push(adj.len());
+        for v in 0..n {
+            start[v + 1] += start[v];
         }
+        let mut fill = start.clone();
+        let mut adj = vec![0u32; start[n]];
+        for f in faces {
+            for k in 0..3 {
+                let (a, b) = (f[k], f[(k + 1) % 3]);
+                adj[fill[a as usize]] = b;
+                fill[a as usize] += 1;
+                adj[fill[b as usize]] = a;
+                fill[b as usize] += 1;
+            }
+        }
+        let mut rows: Vec<&mut [u32]> = Vec::with_capacity(n);
+        let mut rest = &mut adj[..];
+        for v in 0..n {
+            let (row, tail) = rest.split_at_mut(start[v + 1] - start[v]);
+            rows.push(row);
+            rest = tail;
+        }
+        let lens: Vec<usize> = rows.into_par_iter().map(sorted_distinct).collect();
+        let mut closed = 0;
+        for v in 0..n {
+            adj.copy_within(start[v]..start[v] + lens[v], closed);
+            start[v] = closed;
+            closed += lens[v];
+        }
+        start[n] = closed;
+        adj.truncate(closed);
         Self { start, adj }
     }
 
+    /// The neighbours of `v`, ascending.
     pub fn of(&self, v: usize) -> &[u32] {
         &self.adj[self.start[v]..self.start[v + 1]]
     }
+}
+
+/// Sorts `row` and moves its distinct values to the front; returns how many there are.
+fn sorted_distinct(row: &mut [u32]) -> usize {
+    row.sort_unstable();
+    let mut len = 0;
+    for i in 0..row.len() {
+        if i == 0 || row[i] != row[len - 1] {
+            row[len] = row[i];
+            len += 1;
+        }
+    }
+    len
 }
 
 #[cfg(test)]

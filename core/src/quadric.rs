@@ -7,7 +7,7 @@
 
 use std::ops::{Add, AddAssign, Mul};
 
-use crate::mesh::{cross, dot, norm, sub};
+use crate::mesh::{cross, dist2, dot, norm, sub};
 
 /// Relative determinant below which [`Quadric::optimal_point`] calls the 3x3 system singular.
 /// It compares `det(A)` with `max(diag A)^3`, which is about `l2*l3/l1^2` for the eigenvalues
@@ -154,11 +154,6 @@ impl Quadric {
 
 fn midpoint(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [0.5 * (a[0] + b[0]), 0.5 * (a[1] + b[1]), 0.5 * (a[2] + b[2])]
-}
-
-fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
-    let d = sub(a, b);
-    dot(d, d)
 }
 
 impl Add for Quadric {

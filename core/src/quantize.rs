@@ -8,7 +8,7 @@
 //! A predicted frame's differences from its reference's coefficients have a wider dead zone,
 //! [`PREDICTED_DEAD_ZONE`] steps, and are truncated beyond it.
 
-use rayon::prelude::*;
+use crate::mesh::Adjacency;
 
 /// QPs the codec accepts.
 pub const QP_RANGE: std::ops::RangeInclusive<i32> = -24..=63;
@@ -88,47 +88,10 @@ pub fn vertex_weights(n: usize, faces: &[[u32; 3]], aq: Option<&AqParams>) -> Ve
     valences(n, faces).into_iter().map(|k| aq.alpha * k.max(1) as f64 / aq.h).collect()
 }
 
-/// Number of distinct neighbours of each of `n` vertices. Neighbour lists are laid out in
-/// one array by a counting pass (no per-vertex allocation: this runs on every decoded
-/// frame's subdivided mesh), then each short list is sorted to count its distinct entries.
+/// Number of distinct neighbours of each of `n` vertices.
 fn valences(n: usize, faces: &[[u32; 3]]) -> Vec<u32> {
-    let mut start = vec![0usize; n + 1];
-    for f in faces {
-        for &v in f {
-            start[v as usize + 1] += 2;
-        }
-    }
-    for v in 0..n {
-        start[v + 1] += start[v];
-    }
-    let mut fill = start.clone();
-    let mut neighbours = vec![0u32; start[n]];
-    for f in faces {
-        for k in 0..3 {
-            let (a, b) = (f[k], f[(k + 1) % 3]);
-            neighbours[fill[a as usize]] = b;
-            fill[a as usize] += 1;
-            neighbours[fill[b as usize]] = a;
-            fill[b as usize] += 1;
-        }
-    }
-    (0..n).into_par_iter().map(|v| distinct_count(&neighbours[start[v]..start[v + 1]])).collect()
-}
-
-/// Number of distinct values in a short list, sorted on the stack when it fits.
-fn distinct_count(list: &[u32]) -> u32 {
-    let distinct = |sorted: &[u32]| sorted.len() as u32 - sorted.windows(2).filter(|w| w[0] == w[1]).count() as u32;
-    let mut small = [0u32; 32];
-    if list.len() <= small.len() {
-        let small = &mut small[..list.len()];
-        small.copy_from_slice(list);
-        small.sort_unstable();
-        distinct(small)
-    } else {
-        let mut large = list.to_vec();
-        large.sort_unstable();
-        distinct(&large)
-    }
+    let adjacency = Adjacency::new(n, faces);
+    (0..n).map(|v| adjacency.of(v).len() as u32).collect()
 }
 
 /// Coefficient of quantized value `q` on the lattice of [`steps`].

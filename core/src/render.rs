@@ -17,6 +17,7 @@
 
 use rayon::prelude::*;
 
+use crate::bins::Bins;
 use crate::mesh::{cross, dot, norm};
 use crate::texture::{Texture, UvMesh};
 
@@ -78,7 +79,7 @@ pub fn render(
     let scene = Scene { mesh, texture, screen: &screen, scale: frame.scale };
     let rendered: Vec<Vec<[u8; 3]>> = (0..tiles.count())
         .into_par_iter()
-        .map(|t| scene.tile(tiles.rect(t), bins.faces_of(t)))
+        .map(|t| scene.tile(tiles.rect(t), bins.of(t).iter().map(|&f| f as usize)))
         .collect();
     tiles.assemble(&rendered)
 }
@@ -222,19 +223,6 @@ fn pixel_box(tri: &[[f64; 3]; 3], w: usize, h: usize) -> (usize, usize, usize, u
     (x0, x1, y0, y1)
 }
 
-/// Faces listed per tile, in face order within each tile.
-struct Bins {
-    faces: Vec<u32>,
-    /// `faces[starts[t]..starts[t + 1]]` are tile `t`'s.
-    starts: Vec<usize>,
-}
-
-impl Bins {
-    fn faces_of(&self, tile: usize) -> impl Iterator<Item = usize> + '_ {
-        self.faces[self.starts[tile]..self.starts[tile + 1]].iter().map(|&f| f as usize)
-    }
-}
-
 /// Bins every drawable face into the tiles its pixel box overlaps.
 fn bin_faces(screen: &[[f64; 3]], faces: &[[u32; 3]], tiles: &Tiles) -> Bins {
     let per_chunk: Vec<Vec<(u32, u32)>> = faces
@@ -258,21 +246,8 @@ fn bin_faces(screen: &[[f64; 3]], faces: &[[u32; 3]], tiles: &Tiles) -> Bins {
             out
         })
         .collect();
-    // A counting sort, chunk after chunk, keeps face order within each tile.
-    let mut starts = vec![0usize; tiles.count() + 1];
-    for &(t, _) in per_chunk.iter().flatten() {
-        starts[t as usize + 1] += 1;
-    }
-    for t in 0..tiles.count() {
-        starts[t + 1] += starts[t];
-    }
-    let mut next = starts.clone();
-    let mut binned = vec![0u32; starts[tiles.count()]];
-    for &(t, f) in per_chunk.iter().flatten() {
-        binned[next[t as usize]] = f;
-        next[t as usize] += 1;
-    }
-    Bins { faces: binned, starts }
+    // Chunk after chunk, so that each tile keeps face order.
+    Bins::new(tiles.count(), || per_chunk.iter().flatten().copied())
 }
 
 /// One edge's function `p -> orient(a, b, p)` (twice the signed area of `(a, b, p)`), evaluated

@@ -1,19 +1,18 @@
-//! Texture transfer onto a new UV atlas, and padding of the atlas gutters.
+//! Texture transfer onto a new UV atlas.
 //!
 //! The encoder codes a reconstructed mesh (a subdivided, displaced base mesh) whose UV atlas
 //! differs from the input frame's. As in V-DMC, the input frame's texture is therefore
 //! re-sampled onto the reconstructed mesh's atlas: every texel of the new atlas that a UV
 //! triangle covers is mapped to its 3D point on the reconstructed surface, that point is
 //! projected onto the input surface (closest point), and the input texture is read at the
-//! input UVs of the projection. [`transfer_texture`] does this; [`pad`] then fills the texels
-//! no chart covers with smooth colour (push-pull), because a video coder spends many bits on
-//! the sharp edges between charts and an untouched (black) gutter.
+//! input UVs of the projection. [`transfer_texture`] does this; [`crate::pad::pad`] then fills
+//! the texels no chart covers.
 //!
 //! The closest-point searches dominate the cost (an atlas has millions of texels). Rather than
 //! asking the source's Bvh for each, the image is cut into bands of rows, one rayon task each;
-//! a band is rasterised, then walked texel after adjacent texel, and a shortlist of the source
-//! triangles near the last texels, with distance bounds, proves which one is closest. The
-//! answers are exactly the Bvh's, so the result does not depend on the walk.
+//! a band is rasterised, then walked texel after adjacent texel, so that a
+//! [`crate::closest::Finder`] serves many texels from one shortlist. Its answers are exactly
+//! the Bvh's, so the result does not depend on the walk.
 //!
 //! Image conventions are those of [`crate::texture`]: rows from the top, `v` up, texel
 //! `(x, y)` centred at `u = (x + 0.5) / width`, `v = 1 - (y + 0.5) / height`.
@@ -22,8 +21,9 @@ use std::ops::Range;
 
 use rayon::prelude::*;
 
-use crate::bvh::{closest_on_triangle, Bvh};
-use crate::mesh::{add, cross, dot, interpolate, norm, normalize, scale, sub, Mesh};
+use crate::bins::Bins;
+use crate::closest::{largest_coordinate, Finder, Hit, Source};
+use crate::mesh::{cross, interpolate, norm, sub};
 use crate::texture::{Texture, UvMesh};
 
 /// How far around a UV triangle texels are still covered, in texels along each axis: a
@@ -47,7 +47,7 @@ pub struct Transferred {
     /// The target's texture: transferred colour on covered texels, black elsewhere.
     pub texture: Texture,
     /// One flag per texel (row-major from the top): whether a UV triangle of the target covers
-    /// it, i.e. whether the texel holds transferred colour. Input of [`pad`].
+    /// it, i.e. whether the texel holds transferred colour. Input of [`crate::pad::pad`].
     pub covered: Vec<bool>,
 }
 
@@ -94,8 +94,7 @@ pub fn transfer_texture(
         rgb.par_chunks_mut(rows).zip(covered.par_chunks_mut(rows)).enumerate().for_each_init(
             || Worker::new(&ctx),
             |worker, (band, (rgb, covered))| {
-                let faces = &bins.faces[bins.starts[band]..bins.starts[band + 1]];
-                worker.band(band * BAND, faces, rgb, covered);
+                worker.band(band * BAND, bins.of(band), rgb, covered);
             },
         );
     }
@@ -136,15 +135,8 @@ impl Context<'_> {
     }
 }
 
-/// Target faces listed per band of rows (compressed rows: band `b` holds
-/// `faces[starts[b]..starts[b + 1]]`, in face order).
-struct Bins {
-    starts: Vec<usize>,
-    faces: Vec<u32>,
-}
-
 /// Sorts the target faces into the bands their covered texels may fall in, so that each band
-/// task visits only its own faces.
+/// task visits only its own faces (in face order).
 fn bin_faces(ctx: &Context) -> Bins {
     let bands = ctx.height.div_ceil(BAND);
     let spans: Vec<Range<u32>> = (0..ctx.target.mesh.faces.len() as u32)
@@ -154,27 +146,7 @@ fn bin_faces(ctx: &Context) -> Bins {
             texels.map_or(0..0, |(_, rows)| (rows.start / BAND) as u32..((rows.end - 1) / BAND + 1) as u32)
         })
         .collect();
-    let counts = spans
-        .par_chunks(1 << 14)
-        .map(|chunk| {
-            let mut counts = vec![0usize; bands];
-            chunk.iter().flat_map(|s| s.clone()).for_each(|b| counts[b as usize] += 1);
-            counts
-        })
-        .reduce(|| vec![0; bands], |a, b| a.iter().zip(&b).map(|(x, y)| x + y).collect());
-    let mut starts = vec![0usize; bands + 1];
-    for b in 0..bands {
-        starts[b + 1] = starts[b] + counts[b];
-    }
-    let mut next = starts.clone();
-    let mut faces = vec![0u32; starts[bands]];
-    for (f, span) in spans.iter().enumerate() {
-        for b in span.clone() {
-            faces[next[b as usize]] = f as u32;
-            next[b as usize] += 1;
-        }
-    }
-    Bins { starts, faces }
+    Bins::new(bands, || spans.iter().enumerate().flat_map(|(f, s)| s.clone().map(move |b| (b, f as u32))))
 }
 
 /// One rayon job's state: the finder and the buffers of a band.
@@ -414,270 +386,6 @@ fn ceil(x: f64) -> i64 {
     if (t as f64) < x { t + 1 } else { t }
 }
 
-/// The closest point of the source to a texel's point: source face, barycentrics there, and
-/// squared distance.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Hit {
-    triangle: u32,
-    bary: [f64; 3],
-    dist2: f64,
-}
-
-/// The source surface, prepared for closest-point queries.
-struct Source {
-    bvh: Bvh,
-    grid: Grid,
-    /// Corners of each face.
-    tris: Vec<[[f64; 3]; 3]>,
-    bounds: Vec<Bound>,
-    /// Bounding sphere (centre, radius) of each face: a yet cheaper first test.
-    spheres: Vec<[f64; 4]>,
-    /// Mean edge length.
-    edge: f64,
-    /// Absolute slack on distance comparisons, against rounding (whose error grows with the
-    /// coordinates' magnitude).
-    eps: f64,
-}
-
-impl Source {
-    /// Prepares `mesh` for queries from points whose coordinates are at most `magnitude`
-    /// (together with the mesh's own, this sets the slack against rounding).
-    fn new(mesh: &Mesh, magnitude: f64) -> Self {
-        let tris: Vec<[[f64; 3]; 3]> = mesh.faces.par_iter().map(|f| f.map(|v| mesh.positions[v as usize])).collect();
-        let bounds = tris.par_iter().map(|&t| Bound::new(t)).collect();
-        let spheres = tris.par_iter().map(|&t| bounding_sphere(t)).collect();
-        let edge = mean_edge(&tris);
-        let (bvh, grid) = rayon::join(|| Bvh::new(&mesh.positions, &mesh.faces), || Grid::new(&tris, edge));
-        let eps = 1e-12 * (1.0 + magnitude.max(largest_coordinate(&mesh.positions)));
-        Self { bvh, grid, tris, bounds, spheres, edge, eps }
-    }
-
-    /// The closest point to `q` of source face `face`.
-    fn hit(&self, q: [f64; 3], face: u32) -> Hit {
-        let (_, dist2, bary) = closest_on_triangle(q, self.tris[face as usize]);
-        Hit { triangle: face, bary, dist2 }
-    }
-
-    /// A lower bound on the distance from `q` to source face `face`.
-    fn lower(&self, face: u32, q: [f64; 3]) -> f64 {
-        self.bounds[face as usize].lower(q)
-    }
-
-    /// Replaces `out` with the faces that may lie within `reach` of `c`, nearest first (all
-    /// those that do are there); `false` if there are too many.
-    fn shortlist(&self, seen: &mut Seen, c: [f64; 3], reach: f64, out: &mut Vec<Entry>) -> bool {
-        out.clear();
-        let complete = self.grid.visit(c, reach, seen, |f| {
-            let [x, y, z, r] = self.spheres[f as usize];
-            let d = sub(c, [x, y, z]);
-            if dot(d, d) <= (reach + r).powi(2) {
-                let (lower, plane) = self.bounds[f as usize].farthest(c);
-                if lower <= reach {
-                    out.push(Entry { lower, face: f, plane });
-                }
-            }
-            out.len() <= MAX_SHORTLIST
-        });
-        out.sort_unstable_by(|a, b| a.lower.total_cmp(&b.lower).then(a.face.cmp(&b.face)));
-        complete
-    }
-}
-
-fn largest_coordinate(points: &[[f64; 3]]) -> f64 {
-    points.par_iter().map(|p| p[0].abs().max(p[1].abs()).max(p[2].abs())).reduce(|| 0.0, f64::max)
-}
-
-fn bounding_sphere(t: [[f64; 3]; 3]) -> [f64; 4] {
-    let c = scale(add(add(t[0], t[1]), t[2]), 1.0 / 3.0);
-    let r = t.iter().map(|&p| norm(sub(p, c))).fold(0.0, f64::max);
-    [c[0], c[1], c[2], r]
-}
-
-/// Finds the closest source points of texels one after another, exploiting that consecutive
-/// texels lie close together on the target.
-///
-/// It keeps a shortlist: every source triangle within `radius` of a `centre`, with a lower
-/// bound on its distance from the centre, nearest first. For a query `q` at `delta` from the
-/// centre, a triangle as close to `q` as the best one found (at `d`) lies within `delta + d`
-/// of the centre; so if that is within the radius, the shortlist holds every candidate, and
-/// the scan may stop at the first bound beyond `delta + d`. Otherwise the shortlist is made
-/// anew around `q`, from the source grid. The answers are those of [`Bvh::closest_point`] on
-/// the whole source, tie-breaking included: the same distance code runs over every triangle
-/// that could win.
-struct Finder<'a> {
-    source: &'a Source,
-    span: f64,
-    /// Ascending by lower bound.
-    shortlist: Vec<Entry>,
-    centre: [f64; 3],
-    radius: f64,
-    /// The source face of the last answer, tried first.
-    hint: Option<u32>,
-    /// Queries left to send straight to the whole source's Bvh, after listing failed.
-    cooldown: u32,
-    seen: Seen,
-}
-
-/// Queries sent straight to the Bvh after a failed listing, before listing is tried again:
-/// where the target is far from the source, every texel would otherwise list in vain.
-const COOLDOWN: u32 = 64;
-
-impl<'a> Finder<'a> {
-    fn new(source: &'a Source, span: f64) -> Self {
-        let (shortlist, hint, seen) = (Vec::new(), None, Seen::new(source.tris.len()));
-        let (centre, radius, cooldown) = ([0.0; 3], f64::NEG_INFINITY, 0);
-        Self { source, span, shortlist, centre, radius, hint, cooldown, seen }
-    }
-
-    /// The closest point of the source to `q`; `None` only for an empty source.
-    fn closest(&mut self, q: [f64; 3]) -> Option<Hit> {
-        if self.cooldown == 0 {
-            let (hit, certain) = self.scan(q);
-            if certain {
-                return hit;
-            }
-            let upper = match hit {
-                Some(h) => h.dist2.sqrt(),
-                None => self.source.bvh.closest_point(q)?.dist2.sqrt(),
-            };
-            if self.renew(q, upper) {
-                return self.scan(q).0;
-            }
-            self.cooldown = COOLDOWN;
-        }
-        self.cooldown -= 1;
-        let hit = self.source.hit(q, self.source.bvh.closest_point(q)?.triangle);
-        self.hint = Some(hit.triangle);
-        Some(hit)
-    }
-
-    /// The best of the shortlist for `q`, and whether it is sure to be the best of all. The
-    /// last answer is tried first: the next texel mostly has the same, and its distance then
-    /// rules out most other triangles of the list by their bounds alone.
-    fn scan(&mut self, q: [f64; 3]) -> (Option<Hit>, bool) {
-        let (source, eps) = (self.source, self.source.eps);
-        let delta = norm(sub(q, self.centre));
-        let mut best: Option<Hit> = self.hint.map(|h| source.hit(q, h));
-        let mut best_dist = best.map_or(f64::INFINITY, |b| b.dist2.sqrt());
-        for e in &self.shortlist {
-            if e.lower - delta > best_dist + eps {
-                break;
-            }
-            let f = e.face;
-            let beyond = |d: f64| d > best_dist + eps;
-            if Some(f) == self.hint || beyond(plane_side(e.plane, q)) || beyond(source.lower(f, q)) {
-                continue;
-            }
-            let hit = source.hit(q, f);
-            if best.map_or(true, |b| hit.dist2 < b.dist2 || (hit.dist2 == b.dist2 && f < b.triangle)) {
-                best = Some(hit);
-                best_dist = hit.dist2.sqrt();
-            }
-        }
-        self.hint = best.map(|b| b.triangle);
-        (best, !self.shortlist.is_empty() && delta + best_dist <= self.radius - eps)
-    }
-
-    /// Lists the triangles within `upper + span` of `q`, `upper` being the distance from `q`
-    /// to some source triangle (so that one at least is listed). Where the source is dense,
-    /// lists less far; `false` if even that is too many.
-    fn renew(&mut self, q: [f64; 3], upper: f64) -> bool {
-        for span in [self.span, self.span / 8.0] {
-            let radius = upper + span;
-            let eps = self.source.eps;
-            if self.source.shortlist(&mut self.seen, q, radius + eps, &mut self.shortlist) {
-                (self.centre, self.radius) = (q, radius);
-                return true;
-            }
-        }
-        self.radius = f64::NEG_INFINITY;
-        false
-    }
-}
-
-/// A triangle of a [`Finder`]'s shortlist.
-struct Entry {
-    /// A lower bound on its distance from the shortlist's centre.
-    lower: f64,
-    face: u32,
-    /// The plane of its [`Bound`] farthest from the centre: one plane, a yet cheaper bound
-    /// for points nearby.
-    plane: [f64; 4],
-}
-
-/// Shortlisted triangles beyond which listing costs more than it saves: the queries then go
-/// to the whole source's Bvh.
-const MAX_SHORTLIST: usize = 1024;
-/// Grid cells a listing may visit, for the same reason.
-const MAX_LIST_CELLS: usize = 4096;
-
-/// Marks the faces already met during one listing, without clearing between listings.
-struct Seen {
-    stamp: Vec<u32>,
-    now: u32,
-}
-
-impl Seen {
-    fn new(n: usize) -> Self {
-        Self { stamp: vec![0; n], now: 0 }
-    }
-
-    fn next(&mut self) {
-        self.now = self.now.wrapping_add(1);
-        if self.now == 0 {
-            self.stamp.fill(0);
-            self.now = 1;
-        }
-    }
-
-    /// Whether `f` is met for the first time in this listing.
-    fn first(&mut self, f: u32) -> bool {
-        std::mem::replace(&mut self.stamp[f as usize], self.now) != self.now
-    }
-}
-
-/// Half-spaces that hold a triangle: the two sides of a slab around its plane and the three
-/// half-spaces of its edges (unit normals). The farthest of their planes from a point is a
-/// lower bound on the distance to the triangle, about as tight as the distance itself except
-/// off the corners, for a fifth of its cost. Built from the triangle's own corners, so that it
-/// holds for degenerate triangles too (where it is only weaker).
-struct Bound {
-    /// `(n, o)`: the half-space `n · x <= o`.
-    planes: [[f64; 4]; 5],
-}
-
-impl Bound {
-    fn new(t: [[f64; 3]; 3]) -> Self {
-        let normal = normalize(cross(sub(t[1], t[0]), sub(t[2], t[0])));
-        let holding = |n: [f64; 3]| {
-            let o = t.iter().map(|&p| dot(n, p)).fold(f64::NEG_INFINITY, f64::max);
-            [n[0], n[1], n[2], o]
-        };
-        let edge = |i: usize| holding(normalize(cross(sub(t[(i + 1) % 3], t[i]), normal)));
-        Self { planes: [holding(normal), holding(scale(normal, -1.0)), edge(0), edge(1), edge(2)] }
-    }
-
-    /// The plane of half-space `k` as seen from `q`: positive outside.
-    fn side(&self, k: usize, q: [f64; 3]) -> f64 {
-        plane_side(self.planes[k], q)
-    }
-
-    fn lower(&self, q: [f64; 3]) -> f64 {
-        (1..5).fold(self.side(0, q), |d, k| d.max(self.side(k, q)))
-    }
-
-    /// The half-space whose plane is farthest from `q`, and that distance (the bound).
-    fn farthest(&self, q: [f64; 3]) -> (f64, [f64; 4]) {
-        let sides = [0, 1, 2, 3, 4].map(|k| self.side(k, q));
-        let k = (1..5).fold(0, |b, k| if sides[k] > sides[b] { k } else { b });
-        (sides[k], self.planes[k])
-    }
-}
-
-fn plane_side(p: [f64; 4], q: [f64; 3]) -> f64 {
-    p[0] * q[0] + p[1] * q[1] + p[2] * q[2] - p[3]
-}
-
 /// How far a [`Finder`]'s shortlist reaches beyond its own distance to the source, in target
 /// texels: it then serves the texels about that far along the band before it is remade.
 const SPAN: f64 = 8.0;
@@ -699,131 +407,6 @@ fn span(target: &UvMesh, edge: f64, width: usize, height: usize) -> f64 {
     if span > 0.0 && span.is_finite() { span } else { 1.0 }
 }
 
-fn mean_edge(tris: &[[[f64; 3]; 3]]) -> f64 {
-    let total: f64 = tris.par_iter().map(|[a, b, c]| norm(sub(*b, *a)) + norm(sub(*c, *b)) + norm(sub(*a, *c))).sum();
-    total / (3 * tris.len().max(1)) as f64
-}
-
-type Aabb = ([f64; 3], [f64; 3]);
-
-fn box_dist2((lo, hi): &Aabb, q: [f64; 3]) -> f64 {
-    (0..3).map(|k| (lo[k] - q[k]).max(q[k] - hi[k]).max(0.0).powi(2)).sum()
-}
-
-/// Cells a grid may have (and entries beyond 16 per triangle): enough for triangle-sized
-/// cells on meshes of a few 100k triangles, few enough to build in milliseconds whatever the
-/// mesh's shape.
-const MAX_CELLS: f64 = 4_000_000.0;
-
-/// The source triangles bucketed by the cells of a uniform grid that their bounding boxes
-/// overlap: the query for all triangles near a ball, which the [`Finder`] needs and [`Bvh`]
-/// does not offer.
-struct Grid {
-    lo: [f64; 3],
-    cell: f64,
-    dims: [usize; 3],
-    /// Cell `i` holds `faces[starts[i]..starts[i + 1]]`.
-    starts: Vec<u32>,
-    faces: Vec<u32>,
-    /// Bounding box of each source face.
-    boxes: Vec<Aabb>,
-}
-
-impl Grid {
-    /// A grid over triangles `tris`, with cells about `edge` across.
-    fn new(tris: &[[[f64; 3]; 3]], edge: f64) -> Self {
-        let boxes: Vec<Aabb> = tris.iter().map(|&t| triangle_box(t)).collect();
-        let (lo, hi) = boxes.iter().fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(lo, hi), b| {
-            ([0, 1, 2].map(|k| lo[k].min(b.0[k])), [0, 1, 2].map(|k| hi[k].max(b.1[k])))
-        });
-        let extent = [0, 1, 2].map(|k| (hi[k] - lo[k]).max(0.0));
-        let largest = extent.iter().fold(0.0f64, |m, &e| m.max(e));
-        // Cells about a triangle across, but at most ~1000 along an axis and MAX_CELLS in
-        // all, so a mesh of tiny triangles spread far apart cannot blow up the grid.
-        let mut cell = edge.max(largest / 1024.0);
-        if cell.is_nan() || cell <= 0.0 {
-            cell = 1.0;
-        }
-        // Nor may a few huge triangles among many small ones fill the cells with entries.
-        let cells = |cell: f64| extent.iter().map(|e| (e / cell).floor() + 1.0).product::<f64>();
-        let entries = |cell: f64| -> f64 {
-            boxes.iter().map(|(lo, hi)| (0..3).map(|k| (hi[k] - lo[k]) / cell + 2.0).product::<f64>()).sum()
-        };
-        let budget = MAX_CELLS + 16.0 * tris.len() as f64;
-        while cells(cell) > MAX_CELLS || entries(cell) > budget {
-            cell *= 1.25;
-        }
-        let dims = extent.map(|e| (e / cell) as usize + 1);
-        let mut grid = Self { lo, cell, dims, starts: Vec::new(), faces: Vec::new(), boxes };
-        grid.fill();
-        grid
-    }
-
-    /// Buckets the faces by cell (counting sort: count, prefix sums, place).
-    fn fill(&mut self) {
-        let mut starts = vec![0u32; self.dims.iter().product::<usize>() + 1];
-        for b in &self.boxes {
-            self.for_cells(b, |c| starts[c + 1] += 1);
-        }
-        for c in 1..starts.len() {
-            starts[c] += starts[c - 1];
-        }
-        let mut next = starts.clone();
-        let mut faces = vec![0u32; *starts.last().unwrap_or(&0) as usize];
-        for (f, b) in self.boxes.iter().enumerate() {
-            self.for_cells(b, |c| {
-                faces[next[c] as usize] = f as u32;
-                next[c] += 1;
-            });
-        }
-        (self.starts, self.faces) = (starts, faces);
-    }
-
-    /// The cell range along each axis that the box `[lo, hi]` overlaps (clamped to the grid).
-    fn cell_range(&self, lo: [f64; 3], hi: [f64; 3]) -> [Range<usize>; 3] {
-        let at = |k: usize, x: f64| (((x - self.lo[k]) / self.cell).floor().max(0.0) as usize).min(self.dims[k] - 1);
-        [0, 1, 2].map(|k| at(k, lo[k])..at(k, hi[k]) + 1)
-    }
-
-    fn for_cells(&self, b: &Aabb, mut visit: impl FnMut(usize)) {
-        let [xs, ys, zs] = self.cell_range(b.0, b.1);
-        for z in zs {
-            for y in ys.clone() {
-                for x in xs.clone() {
-                    visit((z * self.dims[1] + y) * self.dims[0] + x);
-                }
-            }
-        }
-    }
-
-    /// Calls `visit` once on each face whose bounding box comes within `radius` of `centre`,
-    /// while it returns `true`; `false` if it returned `false` or there were too many cells to
-    /// visit.
-    fn visit(&self, centre: [f64; 3], radius: f64, seen: &mut Seen, mut visit: impl FnMut(u32) -> bool) -> bool {
-        let b = (centre.map(|c| c - radius), centre.map(|c| c + radius));
-        let count: usize = self.cell_range(b.0, b.1).iter().map(|r| r.len()).product();
-        if count > MAX_LIST_CELLS {
-            return false;
-        }
-        seen.next();
-        let mut going = true;
-        self.for_cells(&b, |c| {
-            for &f in &self.faces[self.starts[c] as usize..self.starts[c + 1] as usize] {
-                if going && seen.first(f) && box_dist2(&self.boxes[f as usize], centre) <= radius * radius {
-                    going = visit(f);
-                }
-            }
-        });
-        going
-    }
-}
-
-fn triangle_box(c: [[f64; 3]; 3]) -> Aabb {
-    let lo = [0, 1, 2].map(|k| c[0][k].min(c[1][k]).min(c[2][k]));
-    let hi = [0, 1, 2].map(|k| c[0][k].max(c[1][k]).max(c[2][k]));
-    (lo, hi)
-}
-
 /// Parameter in [0, 1] of the point of segment `ab` nearest to `p`, and its squared distance.
 fn nearest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, f64) {
     let (ab, ap) = ([b[0] - a[0], b[1] - a[1]], [p[0] - a[0], p[1] - a[1]]);
@@ -833,134 +416,13 @@ fn nearest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, f64) {
     (t, d[0] * d[0] + d[1] * d[1])
 }
 
-/// Fills the texels of `texture` that are not `covered` (one flag per texel, row-major from
-/// the top, as [`Transferred::covered`]) by push-pull, leaving covered texels unchanged.
-///
-/// Push: a pyramid of ever coarser images (each side halved, rounding up, down to 1 x 1), each
-/// texel the mean of the covered full-resolution texels beneath it. Pull: from the coarsest
-/// level up, every texel with nothing covered beneath it takes the bilinear upsampling of the
-/// level below it. The gutters thus continue the charts' colours smoothly and fade towards the
-/// mean colour of the neighbourhood, which a video coder codes cheaply. Any size works.
-///
-/// If no texel is covered there is nothing to spread and the texture is left as it is.
-/// Panics if `covered.len()` is not `width * height`.
-pub fn pad(texture: &mut Texture, covered: &[bool]) {
-    assert_eq!(covered.len(), texture.rgb.len(), "one coverage flag per texel");
-    if covered.iter().all(|&c| c) || !covered.contains(&true) {
-        return;
-    }
-    let mut levels = vec![reduce(texture.width, texture.height, |x, y| {
-        let i = y * texture.width + x;
-        (texture.rgb[i].map(f32::from), if covered[i] { 1.0 } else { 0.0 })
-    })];
-    while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
-        let next = reduce(last.width, last.height, |x, y| last.at(x, y));
-        levels.push(next);
-    }
-    for k in (0..levels.len() - 1).rev() {
-        let (fine, coarse) = levels.split_at_mut(k + 1);
-        fill_level(&mut fine[k], &coarse[0]);
-    }
-    fill_texture(texture, covered, &levels[0]);
-}
-
-/// One level of the push-pull pyramid.
-struct Level {
-    width: usize,
-    height: usize,
-    colour: Vec<[f32; 3]>,
-    /// Covered full-resolution texels beneath each texel; 0 means the colour is yet unknown.
-    weight: Vec<f32>,
-}
-
-impl Level {
-    fn at(&self, x: usize, y: usize) -> ([f32; 3], f32) {
-        let i = y * self.width + x;
-        (self.colour[i], self.weight[i])
-    }
-
-    /// The colour at the centre of texel `(x, y)` of the level above (twice the size),
-    /// interpolated bilinearly.
-    fn upsample(&self, x: usize, y: usize) -> [f32; 3] {
-        let ((x0, x1, tx), (y0, y1, ty)) = (taps(x, self.width), taps(y, self.height));
-        let c = |x: usize, y: usize| self.colour[y * self.width + x];
-        let (a, b, c, d) = (c(x0, y0), c(x1, y0), c(x0, y1), c(x1, y1));
-        std::array::from_fn(|k| {
-            let top = a[k] + (b[k] - a[k]) * tx;
-            let bottom = c[k] + (d[k] - c[k]) * tx;
-            top + (bottom - top) * ty
-        })
-    }
-}
-
-/// The two texels of a coarse row (of `n`) that fine texel `i` interpolates between, and the
-/// weight of the second: the fine centre lies a quarter of a coarse texel from the centre of
-/// its parent `i / 2`, towards the neighbour on its side (clamped at the border).
-fn taps(i: usize, n: usize) -> (usize, usize, f32) {
-    let j = i / 2;
-    match (i % 2, j) {
-        (0, 0) => (0, 0, 0.0),
-        (0, _) => (j - 1, j, 0.75),
-        _ if j + 1 < n => (j, j + 1, 0.25),
-        _ => (j, j, 0.0),
-    }
-}
-
-/// The next coarser level of a `width` x `height` level read through `fine`: each texel is the
-/// weighted mean of its (up to) four children.
-fn reduce(width: usize, height: usize, fine: impl Fn(usize, usize) -> ([f32; 3], f32) + Sync) -> Level {
-    let (w, h) = (width.div_ceil(2), height.div_ceil(2));
-    let mut colour = vec![[0.0f32; 3]; w * h];
-    let mut weight = vec![0.0f32; w * h];
-    colour.par_chunks_mut(w).zip(weight.par_chunks_mut(w)).enumerate().for_each(|(y, (crow, wrow))| {
-        for x in 0..w {
-            let (mut sum, mut total) = ([0.0f32; 3], 0.0f32);
-            for (fx, fy) in [(2 * x, 2 * y), (2 * x + 1, 2 * y), (2 * x, 2 * y + 1), (2 * x + 1, 2 * y + 1)] {
-                if fx < width && fy < height {
-                    let (c, wt) = fine(fx, fy);
-                    if wt > 0.0 {
-                        (0..3).for_each(|k| sum[k] += c[k] * wt);
-                        total += wt;
-                    }
-                }
-            }
-            if total > 0.0 {
-                crow[x] = sum.map(|s| s / total);
-                wrow[x] = total;
-            }
-        }
-    });
-    Level { width: w, height: h, colour, weight }
-}
-
-/// Gives the texels of `fine` that have no colour yet the colour of `coarse`, already filled.
-fn fill_level(fine: &mut Level, coarse: &Level) {
-    let w = fine.width;
-    fine.colour.par_chunks_mut(w).zip(fine.weight.par_chunks(w)).enumerate().for_each(|(y, (row, weights))| {
-        for (x, c) in row.iter_mut().enumerate() {
-            if weights[x] == 0.0 {
-                *c = coarse.upsample(x, y);
-            }
-        }
-    });
-}
-
-fn fill_texture(texture: &mut Texture, covered: &[bool], coarse: &Level) {
-    let w = texture.width;
-    texture.rgb.par_chunks_mut(w).zip(covered.par_chunks(w)).enumerate().for_each(|(y, (row, cov))| {
-        for (x, c) in row.iter_mut().enumerate() {
-            if !cov[x] {
-                *c = coarse.upsample(x, y).map(|v| v.round().clamp(0.0, 255.0) as u8);
-            }
-        }
-    });
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::bvh::testmesh::{midpoint, Rng, Soup};
-    use crate::mesh::Mesh;
+    use crate::bvh::{closest_on_triangle, Bvh};
+    use crate::mesh::{scale, Mesh};
+    use crate::pad::pad;
 
     fn uv_mesh(positions: Vec<[f64; 3]>, faces: Vec<[u32; 3]>, uv: Vec<[f64; 2]>) -> UvMesh {
         let uv_faces = faces.clone();
@@ -1126,100 +588,6 @@ mod tests {
         pad(&mut zero.texture, &zero.covered);
     }
 
-    #[test]
-    fn closest_points_and_barycentrics_of_proper_and_degenerate_triangles() {
-        let tri = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [0.0, 2.0, 0.0]];
-        let (p, d2, w) = closest_on_triangle([0.5, 1.0, 3.0], tri);
-        assert_eq!((p, d2), ([0.5, 1.0, 0.0], 9.0));
-        assert!((w[0] - 0.25).abs() < 1e-12 && (w[1] - 0.25).abs() < 1e-12 && (w[2] - 0.5).abs() < 1e-12);
-        assert_eq!(closest_on_triangle([3.0, 3.0, 0.0], tri).2, [0.0, 0.5, 0.5]);
-        assert_eq!(closest_on_triangle([-1.0, -1.0, 0.0], tri).2, [1.0, 0.0, 0.0]);
-        let line = [[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 0.0, 0.0]];
-        let (p, _, w) = closest_on_triangle([0.5, 1.0, 0.0], line);
-        assert_eq!(p, [0.5, 0.0, 0.0]);
-        assert_eq!(interpolate(line, w), p);
-        assert_eq!(closest_on_triangle([1.0, 2.0, 1.0], [[1.0; 3]; 3]).2, [1.0, 0.0, 0.0]);
-        // The bound never exceeds the distance, for proper and degenerate triangles.
-        let mut rng = Rng(17);
-        for t in [tri, line, [[1.0; 3]; 3], [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.3, -2.0, 0.5]]] {
-            let b = Bound::new(t);
-            for _ in 0..1000 {
-                let q = rng.point(-3.0, 3.0);
-                assert!(b.lower(q) <= closest_on_triangle(q, t).1.sqrt() + 1e-12, "{t:?} {q:?}");
-            }
-        }
-    }
-
-    #[test]
-    fn pad_keeps_covered_texels_and_fills_the_rest_within_their_range() {
-        for (w, h) in [(37, 23), (1, 9), (64, 64), (5, 1)] {
-            let mut tex = noise(w, h, 3);
-            let mut rng = Rng(w as u64 * 31 + h as u64);
-            let covered: Vec<bool> = (0..w * h).map(|i| i == w * h / 2 || rng.unit() < 0.2).collect();
-            let before = tex.clone();
-            for (c, &k) in tex.rgb.iter_mut().zip(&covered) {
-                if !k {
-                    *c = [0, 0, 0];
-                }
-            }
-            pad(&mut tex, &covered);
-            let (lo, hi) = covered.iter().zip(&before.rgb).filter(|(&k, _)| k).fold(([255u8; 3], [0u8; 3]), |(lo, hi), (_, c)| {
-                ([0, 1, 2].map(|k| lo[k].min(c[k])), [0, 1, 2].map(|k| hi[k].max(c[k])))
-            });
-            for (i, (&k, c)) in covered.iter().zip(&tex.rgb).enumerate() {
-                if k {
-                    assert_eq!(*c, before.rgb[i]);
-                } else {
-                    assert!((0..3).all(|j| (lo[j]..=hi[j]).contains(&c[j])), "{w}x{h} texel {i}: {c:?}");
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn pad_spreads_a_uniform_colour_everywhere() {
-        let (w, h) = (45, 30);
-        let mut tex = Texture::filled(w, h, [0, 0, 0]);
-        let covered: Vec<bool> = (0..w * h).map(|i| (i % w) > 30 && (i / w) < 7).collect();
-        for (c, &k) in tex.rgb.iter_mut().zip(&covered) {
-            if k {
-                *c = [200, 17, 93];
-            }
-        }
-        pad(&mut tex, &covered);
-        assert!(tex.rgb.iter().all(|&c| c == [200, 17, 93]));
-        // Nothing covered: nothing to spread, nothing changes; a single texel spreads anywhere.
-        let mut none = noise(7, 3, 2);
-        let copy = none.clone();
-        pad(&mut none, &[false; 21]);
-        assert_eq!(none, copy);
-        let mut one = Texture::filled(6, 11, [0, 0, 0]);
-        one.rgb[65] = [1, 2, 3];
-        let mut covered = vec![false; 66];
-        covered[65] = true;
-        pad(&mut one, &covered);
-        assert!(one.rgb.iter().all(|&c| c == [1, 2, 3]));
-    }
-
-    #[test]
-    fn pad_gutters_fade_smoothly_to_the_mean_colour() {
-        // A horizontal ramp (0, 4, .., 124) covered on its left half: the gutter on the right
-        // starts near the chart's edge colour, falls without ringing, and ends at the mean (62).
-        let (w, h) = (64, 16);
-        let mut tex = Texture::filled(w, h, [0; 3]);
-        let covered: Vec<bool> = (0..w * h).map(|i| i % w < 32).collect();
-        for (i, c) in tex.rgb.iter_mut().enumerate() {
-            if covered[i] {
-                *c = [(4 * (i % w)) as u8, 0, 0];
-            }
-        }
-        pad(&mut tex, &covered);
-        let row: Vec<i32> = (31..w).map(|x| tex.texel(x, 8)[0] as i32).collect();
-        assert!(row[0] - row[1] < 124 / 4, "jump at the chart edge: {row:?}");
-        assert!(row.windows(2).all(|p| p[1] <= p[0]), "{row:?}");
-        assert_eq!(row[row.len() - 1], 62);
-    }
-
     /// Lat-long sphere with a UV atlas: `u` around, `v` up, a seam at `u = 0 = 1`, pole fans.
     /// Returns the mesh and its UVs as a second soup (z = 0), faces in the same order.
     fn sphere(stacks: u32, slices: u32, radius: impl Fn(f64, f64) -> f64) -> (Soup, Soup) {
@@ -1304,31 +672,6 @@ mod tests {
         }
         assert_eq!(centres_within(-1e300, 1e300, 3, false), Some(0..3));
         assert_eq!(centres_within(f64::NEG_INFINITY, -1e300, 3, true), None);
-    }
-
-    #[test]
-    fn finder_agrees_with_the_bvh_near_and_far() {
-        // A dense patch (more triangles than a gathering may hold) inside a coarse sphere, and
-        // queries that walk near the patch, then jump far off (where gathering fails too).
-        let (mut pos, mut faces) = sphere(12, 24, bumpy).0;
-        let (p2, f2) = crate::bvh::testmesh::grid(60, 60, 0.004, [0.2, 0.2, 0.0]);
-        let n = pos.len() as u32;
-        pos.extend(p2);
-        faces.extend(f2.iter().map(|f| f.map(|v| v + n)));
-        let source = Source::new(&Mesh::new(pos, faces), 10.0);
-        let mut finder = Finder::new(&source, 0.02);
-        let mut rng = Rng(29);
-        let mut q = [0.3, 0.3, 0.01];
-        for i in 0..20_000 {
-            q = match i % 4000 {
-                0 => [0.3, 0.3, 0.001],
-                1999 => rng.point(-3.0, 3.0),
-                _ => add(q, rng.point(-0.01, 0.01)),
-            };
-            let got = finder.closest(q).unwrap();
-            let want = source.hit(q, source.bvh.closest_point(q).unwrap().triangle);
-            assert_eq!(got, want, "query {i} at {q:?}");
-        }
     }
 
     /// The transfer done the slow and obvious way: every face tried at every texel, and the

@@ -7,38 +7,18 @@
 //! coded in one range-coded block ([`crate::ec`]), face by face in the given order, which the
 //! base mesh coder makes a traversal order, so consecutive faces are neighbours.
 //!
-//! **Which UV.** Each position vertex keeps the UVs already used at it (its candidates). A
-//! corner either reuses one of them, takes a new UV, or (rarely: an atlas may share a UV
-//! between positions) names any earlier UV by index. Most vertices have exactly one UV, so
-//! the usual symbol is "the first candidate" at a fraction of a bit. Candidates are ranked
-//! so that the first is nearly always right: one that forms an already-coded UV edge with a
-//! UV this face reuses is on the same side of the seam; then the nearest in UV space to such
-//! a UV (charts lie apart in the atlas); then the most recently used. The corners of a face
-//! are decided in order of how many candidates they have, so that the ambiguous seam
-//! corners come last, with the most context. The "first candidate" flag is modelled by
-//! whether the candidate shares a coded UV edge with a reused UV of the face (or lies at a
-//! plausible distance from one, given the atlas's running texels-per-unit), whether the face
-//! already took new UVs and where, and, with positions, whether the coded face that used the
-//! candidate across an edge continues this face smoothly: seams follow creases.
-//!
-//! **New UVs** are coded after the face's decisions, so they can be predicted from every
-//! known corner of the face. With positions, the 3D triangle is laid on a known UV edge
-//! (a parametrization preserves angles locally, roughly), on the side away from the UV
-//! triangle across that edge, or turning as the chart does; one known corner gives the 3D
-//! direction in the tangent plane relative to a coded UV edge of that corner. Without
-//! positions: the parallelogram across a coded UV edge (a UV edge, keyed by UV indices,
-//! cannot cross a seam), the midpoint of two known corners, the one known corner. A face
-//! with no known corner starts a chart anywhere in the atlas: its first UV is coded raw.
-//! Residuals are coded per axis with adaptive Exp-Golomb models, one pair per kind of
-//! prediction, since their spreads differ by orders of magnitude. Positions roughly halve
-//! an xatlas atlas (on basketball_player's base mesh: 16.1 → 7.6 bits per UV).
+//! Which UV each corner uses is [`crate::uv_corners`]; the values of new UVs,
+//! predicted from the face, are [`crate::uv_prediction`].
 //!
 //! The decoded UV list is renumbered in order of first use ([`canonical_uv`]); that is the
 //! only thing the coding does not keep. Decoding does a bounded amount of work per face of
 //! the caller's mesh, whatever the data, and allocates nothing the faces cannot reference.
 
+use crate::error::Corrupt;
 use crate::ec::{BitModel, DecSide, Decoder, EncSide, Encoder, IntModel, Side};
-use crate::mesh::{edge_key, EdgeMap};
+use crate::mesh::{dot, edge_key, sub, EdgeMap};
+use crate::uv_corners::{decide_corners, squared_distance};
+use crate::uv_prediction::{code_new_uvs, uv_cross};
 
 /// An atlas: per face, the UV indices of its corners; and the UVs.
 pub type UvAtlas = (Vec<[u32; 3]>, Vec<[u32; 2]>);
@@ -49,7 +29,7 @@ pub const MAX_UV_BITS: u32 = 16;
 /// cause. Further UVs at the vertex are still reachable through the explicit escape.
 const MAX_CANDIDATES: usize = 32;
 /// Cosine of the angle between face normals beyond which an edge counts as a crease.
-const BEND_COS: f64 = 0.9;
+pub(crate) const BEND_COS: f64 = 0.9;
 
 /// Codes the atlas of the mesh `faces`: corner `k` of face `f` uses `uv[uv_faces[f][k]]`,
 /// a UV quantized to `bits` bits per axis. UVs no corner uses are not coded. Decode with
@@ -68,7 +48,7 @@ pub fn encode_uv(faces: &[[u32; 3]], uv_faces: &[[u32; 3]], uv: &[[u32; 2]], bit
 /// at or beyond `vertex_count`, or the data is truncated or impossible (a corrupted block may
 /// also decode to some other atlas of the right shape). Work and memory are linear in the
 /// face count, whatever the data.
-pub fn decode_uv(data: &[u8], faces: &[[u32; 3]], vertex_count: usize, bits: u32) -> Result<UvAtlas, String> {
+pub fn decode_uv(data: &[u8], faces: &[[u32; 3]], vertex_count: usize, bits: u32) -> Result<UvAtlas, Corrupt> {
     decode(data, faces, None, vertex_count, bits)
 }
 
@@ -86,7 +66,7 @@ pub fn encode_uv_with_positions(positions: &[[f64; 3]], faces: &[[u32; 3]], uv_f
 /// Inverse of [`encode_uv_with_positions`] for the same `positions`, `faces` and `bits`;
 /// errors as [`decode_uv`] (the vertex count is `positions.len()`). Positions that are not
 /// finite only weaken the prediction.
-pub fn decode_uv_with_positions(data: &[u8], positions: &[[f64; 3]], faces: &[[u32; 3]], bits: u32) -> Result<UvAtlas, String> {
+pub fn decode_uv_with_positions(data: &[u8], positions: &[[f64; 3]], faces: &[[u32; 3]], bits: u32) -> Result<UvAtlas, Corrupt> {
     decode(data, faces, Some(positions), positions.len(), bits)
 }
 
@@ -96,23 +76,25 @@ fn encode(faces: &[[u32; 3]], positions: Option<&[[f64; 3]]>, uv_faces: &[[u32; 
     assert!(uv_faces.iter().flatten().all(|&i| (i as usize) < uv.len()), "a UV index is beyond the UV list");
     assert!(uv.iter().flatten().all(|&c| (c as u64) < 1u64 << bits), "a UV does not fit in {bits} bits");
     let vertex_count = faces.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0);
-    let mut side = EncSide(Encoder::new());
+    let mut enc = Encoder::new();
+    let mut side = EncSide(&mut enc);
     let coded = walk(&mut side, &mut Models::new(), faces, positions, vertex_count, bits, Some(Truth::new(uv_faces, uv)))
         .expect("the encoder's own atlas is consistent");
     debug_assert_eq!(canonical_uv(&coded.0, &coded.1), canonical_uv(uv_faces, uv));
-    side.0.finish()
+    enc.finish()
 }
 
-fn decode(data: &[u8], faces: &[[u32; 3]], positions: Option<&[[f64; 3]]>, vertex_count: usize, bits: u32) -> Result<UvAtlas, String> {
+fn decode(data: &[u8], faces: &[[u32; 3]], positions: Option<&[[f64; 3]]>, vertex_count: usize, bits: u32) -> Result<UvAtlas, Corrupt> {
     if !(1..=MAX_UV_BITS).contains(&bits) {
-        return Err(format!("UV atlas: bit depth {bits} out of range"));
+        return Err(format!("UV atlas: bit depth {bits} out of range").into());
     }
     if let Some(f) = faces.iter().position(|f| f.iter().any(|&v| v as usize >= vertex_count)) {
-        return Err(format!("UV atlas: face {f} refers to a vertex beyond the {vertex_count} vertices"));
+        return Err(format!("UV atlas: face {f} refers to a vertex beyond the {vertex_count} vertices").into());
     }
-    let mut side = DecSide(Decoder::new(data));
+    let mut dec = Decoder::new(data);
+    let mut side = DecSide(&mut dec);
     let (uv_faces, uv) = walk(&mut side, &mut Models::new(), faces, positions, vertex_count, bits, None)?;
-    side.0.finish().map_err(|e| format!("UV atlas: {e}"))?;
+    dec.finish().map_err(|e| Corrupt(format!("UV atlas: {e}")))?;
     Ok(canonical_uv(&uv_faces, &uv))
 }
 
@@ -138,58 +120,18 @@ pub fn canonical_uv(uv_faces: &[[u32; 3]], uv: &[[u32; 2]]) -> UvAtlas {
     (out_faces, out_uv)
 }
 
-/// What a corner uses: a UV already coded (by coded index) or a new one.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Choice {
-    Existing(u32),
-    New,
-}
-
-/// How a new UV was predicted; each kind has its own residual models.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Prediction {
-    /// Parallelogram across a coded UV edge of the same chart.
-    Parallelogram = 0,
-    /// Two corners of the face known, no UV edge across.
-    TwoCorners = 1,
-    /// One corner of the face known: that corner's UV.
-    OneCorner = 2,
-    /// The 3D triangle's shape laid on a known UV edge, on the side away from the UV
-    /// triangle across that edge.
-    ShapeAcross = 3,
-    /// The 3D triangle's shape laid on two known corners, turning as the known corner's
-    /// first face does.
-    ShapeOriented = 4,
-    /// One corner known: the 3D direction to the corner, in the tangent plane, relative to
-    /// a coded UV edge from the known corner.
-    ShapeOneCorner = 5,
-}
-
-impl Prediction {
-    /// Every kind, in the order of their residual models.
-    #[cfg(test)]
-    const ALL: [Prediction; 6] = [
-        Prediction::Parallelogram,
-        Prediction::TwoCorners,
-        Prediction::OneCorner,
-        Prediction::ShapeAcross,
-        Prediction::ShapeOriented,
-        Prediction::ShapeOneCorner,
-    ];
-}
-
 /// Adaptive contexts, shared by encoder and decoder so that both adapt identically.
-struct Models {
+pub(crate) struct Models {
     /// "The first-ranked candidate", by [`CornerContext`].
-    first: [[[[BitModel; 3]; 3]; 4]; 2],
+    pub(crate) first: [[[[BitModel; 3]; 3]; 4]; 2],
     /// "A new UV" once the first candidate is refused: by (more than one candidate, the
     /// face's new UVs so far).
-    new: [[BitModel; 3]; 2],
+    pub(crate) new: [[BitModel; 3]; 2],
     /// Truncated unary over the remaining ranks, then the explicit escape.
-    rank: [BitModel; 4],
+    pub(crate) rank: [BitModel; 4],
     /// "A new UV" for a vertex without candidates (else the explicit escape).
-    fresh: BitModel,
-    residual: [[IntModel; 2]; 6],
+    pub(crate) fresh: BitModel,
+    pub(crate) residual: [[IntModel; 2]; 6],
 }
 
 impl Models {
@@ -205,41 +147,41 @@ impl Models {
 }
 
 /// What the walk has coded so far, identical on both sides.
-struct Atlas<'a> {
+pub(crate) struct Atlas<'a> {
     /// The mesh, with its positions when both sides have them (they sharpen the prediction).
-    faces: &'a [[u32; 3]],
-    positions: Option<&'a [[f64; 3]]>,
+    pub(crate) faces: &'a [[u32; 3]],
+    pub(crate) positions: Option<&'a [[f64; 3]]>,
     /// For each position edge of a coded face, the first such face.
-    edge_face: EdgeMap<u32>,
+    pub(crate) edge_face: EdgeMap<u32>,
     /// Sums of the lengths of coded UV edges, of their 3D edges, and their count: the
     /// atlas's scale.
-    uv_length: f64,
-    length_3d: f64,
-    edges: f64,
+    pub(crate) uv_length: f64,
+    pub(crate) length_3d: f64,
+    pub(crate) edges: f64,
     /// Whether the last coded face whose UVs have an orientation runs counter-clockwise.
-    ccw: bool,
+    pub(crate) ccw: bool,
     /// Per coded UV: the position vertex of its first corner, a UV it shares an edge with
     /// (`u32::MAX` if none), and whether its first face runs counter-clockwise in UV space.
-    vertex: Vec<u32>,
-    neighbour: Vec<u32>,
-    ccw_at: Vec<bool>,
+    pub(crate) vertex: Vec<u32>,
+    pub(crate) neighbour: Vec<u32>,
+    pub(crate) ccw_at: Vec<bool>,
     /// UVs in coding order (indices are "coded indices").
-    uv: Vec<[u32; 2]>,
-    uv_faces: Vec<[u32; 3]>,
+    pub(crate) uv: Vec<[u32; 2]>,
+    pub(crate) uv_faces: Vec<[u32; 3]>,
     /// UVs used so far at each position vertex, in order of first use.
-    candidates: Vec<Vec<u32>>,
+    pub(crate) candidates: Vec<Vec<u32>>,
     /// Per coded UV, the number of the last face that used it.
-    last_used: Vec<u32>,
+    pub(crate) last_used: Vec<u32>,
     /// For each coded UV edge, the third UV of the first face that had it.
-    opposite: EdgeMap<u32>,
+    pub(crate) opposite: EdgeMap<u32>,
 }
 
 /// The encoder's input: the atlas as given, and where each of its UVs went.
-struct Truth<'a> {
-    uv_faces: &'a [[u32; 3]],
-    uv: &'a [[u32; 2]],
+pub(crate) struct Truth<'a> {
+    pub(crate) uv_faces: &'a [[u32; 3]],
+    pub(crate) uv: &'a [[u32; 2]],
     /// Coded index of each input UV, `u32::MAX` until it is coded.
-    coded_index: Vec<u32>,
+    pub(crate) coded_index: Vec<u32>,
 }
 
 impl<'a> Truth<'a> {
@@ -257,7 +199,7 @@ fn walk<S: Side>(
     vertex_count: usize,
     bits: u32,
     mut truth: Option<Truth>,
-) -> Result<UvAtlas, String> {
+) -> Result<UvAtlas, Corrupt> {
     // Only vertices some face uses need a list: a caller's vertex count is not trusted to be small.
     let used_vertices = faces.iter().flatten().map(|&v| v as usize + 1).max().unwrap_or(0).min(vertex_count);
     let mut atlas = Atlas {
@@ -289,354 +231,11 @@ fn walk<S: Side>(
     Ok((atlas.uv_faces, atlas.uv))
 }
 
-/// Codes which UV each corner of `face` uses. Returns the coded indices; a new UV gets the
-/// next free index (`atlas.uv.len()` and up, in decision order) and its value comes later.
-fn decide_corners<S: Side>(
-    side: &mut S,
-    models: &mut Models,
-    atlas: &Atlas,
-    face: &[u32; 3],
-    mut truth: Option<(&mut Truth, usize)>,
-) -> Result<[u32; 3], String> {
-    let coded = atlas.uv.len() as u32;
-    let mut ids = [u32::MAX; 3];
-    let mut pending = 0u32;
-    let mut news = 0;
-    let mut order = [0usize, 1, 2];
-    order.sort_by_key(|&k| atlas.candidates[face[k] as usize].len());
-    for k in order {
-        let references: Vec<u32> = ids.iter().copied().filter(|&i| i < coded).collect();
-        let ranked = ranked_candidates(atlas, &atlas.candidates[face[k] as usize], &references);
-        let reference_corners: Vec<usize> = (0..3).filter(|&j| ids[j] < coded).collect();
-        let wanted = truth.as_ref().map(|(t, f)| t.coded_index[t.uv_faces[*f][k] as usize]);
-        let wanted = match wanted {
-            Some(u32::MAX) | None => Choice::New,
-            Some(i) => Choice::Existing(i),
-        };
-        let context = CornerContext {
-            several: ranked.len() > 1,
-            reference: match ranked.first() {
-                None => 0,
-                _ if references.is_empty() => 0,
-                Some(&c) if references.iter().any(|&r| atlas.opposite.contains_key(&edge_key(c, r))) => 1,
-                Some(&c) if reference_corners.iter().any(|&j| plausible(atlas, face, k, c, j, ids[j])) => 2,
-                Some(_) => 3,
-            },
-            news,
-            bend: match ranked.first() {
-                Some(&c) if references.is_empty() => bend(atlas, face, k, c),
-                _ => 0,
-            },
-        };
-        let choice = code_choice(side, models, &ranked, context, coded + pending, wanted)?;
-        ids[k] = match choice {
-            Choice::Existing(i) => i,
-            Choice::New => {
-                news = news.max(if ranked.is_empty() { 1 } else { 2 });
-                pending += 1;
-                coded + pending - 1
-            }
-        };
-        if let Some((t, f)) = truth.as_mut() {
-            t.coded_index[t.uv_faces[*f][k] as usize] = ids[k];
-        }
-    }
-    Ok(ids)
-}
-
-/// Context of a corner's decision.
-#[derive(Clone, Copy)]
-struct CornerContext {
-    several: bool,
-    /// 0: no reused UV in the face yet; 1: the first candidate shares a coded UV edge with
-    /// one; 2: it does not, but lies at a plausible distance from one; 3: it is far.
-    reference: usize,
-    /// New UVs of the face so far: 0 none; 1 only at vertices without candidates (the chart
-    /// grows); 2 at a vertex that had candidates (the face is across a seam).
-    news: usize,
-    /// Without a reference: 0 unknown, 1 a coded face across an edge at the corner uses the
-    /// first candidate there and continues this face smoothly, 2 it bends sharply (seams
-    /// follow creases).
-    bend: usize,
-}
-
-/// Whether UV `c` at corner `k` lies about as far from UV `r` at corner `j` as the atlas's
-/// scale makes likely for the same chart (another chart is usually far away).
-fn plausible(atlas: &Atlas, face: &[u32; 3], k: usize, c: u32, j: usize, r: u32) -> bool {
-    if atlas.edges == 0.0 {
-        return true;
-    }
-    let expected = match atlas.positions {
-        Some(p) if atlas.length_3d > 0.0 => {
-            let d = sub(p[face[k] as usize], p[face[j] as usize]);
-            dot(d, d).sqrt() * atlas.uv_length / atlas.length_3d
-        }
-        _ => atlas.uv_length / atlas.edges,
-    };
-    let distance = (squared_distance(atlas.uv[c as usize], atlas.uv[r as usize]) as f64).sqrt();
-    distance <= 2.0 * expected + 2.0
-}
-
-/// The [`CornerContext::bend`] of candidate `c` at corner `k`.
-fn bend(atlas: &Atlas, face: &[u32; 3], k: usize, c: u32) -> usize {
-    let Some(p) = atlas.positions else { return 0 };
-    let Some(n) = face_normal(p, face) else { return 0 };
-    let v = face[k];
-    let smoothest = (1..3)
-        .filter_map(|d| atlas.edge_face.get(&edge_key(v, face[(k + d) % 3])))
-        .filter(|&&g| (0..3).any(|i| atlas.faces[g as usize][i] == v && atlas.uv_faces[g as usize][i] == c))
-        .filter_map(|&g| face_normal(p, &atlas.faces[g as usize]))
-        .map(|m| dot(n, m))
-        .fold(f64::NEG_INFINITY, f64::max);
-    match smoothest {
-        x if x == f64::NEG_INFINITY => 0,
-        x if x >= BEND_COS => 1,
-        _ => 2,
-    }
-}
-
-/// The candidates most likely first: those sharing a coded UV edge with a reference (a UV
-/// this face reuses), then by distance to the nearest reference, then most recently used.
-fn ranked_candidates(atlas: &Atlas, candidates: &[u32], references: &[u32]) -> Vec<u32> {
-    let mut ranked = candidates.to_vec();
-    ranked.sort_by_key(|&c| {
-        let connected = references.iter().any(|&r| atlas.opposite.contains_key(&edge_key(c, r)));
-        let distance = references.iter().map(|&r| squared_distance(atlas.uv[c as usize], atlas.uv[r as usize])).min();
-        (!connected, distance.unwrap_or(0), std::cmp::Reverse(atlas.last_used[c as usize]))
-    });
-    ranked
-}
-
-fn squared_distance(a: [u32; 2], b: [u32; 2]) -> u64 {
-    let dx = a[0].abs_diff(b[0]) as u64;
-    let dy = a[1].abs_diff(b[1]) as u64;
-    dx * dx + dy * dy
-}
-
-/// Codes one corner's choice among `ranked` candidates, a new UV, or (escape) any of the
-/// `total` UVs coded or pending so far by index.
-fn code_choice<S: Side>(
-    side: &mut S,
-    models: &mut Models,
-    ranked: &[u32],
-    cx: CornerContext,
-    total: u32,
-    wanted: Choice,
-) -> Result<Choice, String> {
-    if ranked.is_empty() {
-        if side.bit(&mut models.fresh, wanted == Choice::New) {
-            return Ok(Choice::New);
-        }
-    } else {
-        let m = &mut models.first[cx.several as usize][cx.reference][cx.news][cx.bend];
-        if side.bit(m, wanted == Choice::Existing(ranked[0])) {
-            return Ok(Choice::Existing(ranked[0]));
-        }
-        if side.bit(&mut models.new[cx.several as usize][cx.news], wanted == Choice::New) {
-            return Ok(Choice::New);
-        }
-        for (r, &c) in ranked.iter().enumerate().skip(1) {
-            if side.bit(&mut models.rank[(r - 1).min(3)], wanted == Choice::Existing(c)) {
-                return Ok(Choice::Existing(c));
-            }
-        }
-    }
-    if total == 0 {
-        return Err("UV atlas: a corner refers to an earlier UV before any".into());
-    }
-    let index = match wanted {
-        Choice::Existing(i) => i,
-        Choice::New => 0,
-    };
-    let i = side.bypass(index, index_bits(total));
-    if i >= total {
-        return Err(format!("UV atlas: a corner refers to UV {i} of {total}"));
-    }
-    Ok(Choice::Existing(i))
-}
-
-/// Bits that hold any index below `total` (> 0).
-fn index_bits(total: u32) -> u32 {
-    32 - (total - 1).leading_zeros()
-}
-
-/// Codes the values of the UVs that `ids` introduces (indices from `atlas.uv.len()` on) and
-/// appends them to `atlas.uv`. `values` holds the face's corner UVs on the encoder side.
-fn code_new_uvs<S: Side>(
-    side: &mut S,
-    models: &mut Models,
-    atlas: &mut Atlas,
-    face: &[u32; 3],
-    ids: [u32; 3],
-    values: Option<[[u32; 2]; 3]>,
-    bits: u32,
-) -> Result<(), String> {
-    let max = (1u32 << bits) - 1;
-    let first_new = atlas.uv.len() as u32;
-    let mut known: [Option<[u32; 2]>; 3] = ids.map(|i| (i < first_new).then(|| atlas.uv[i as usize]));
-    let mut new_values = Vec::with_capacity(3);
-    while let Some(k) = next_to_code(&known) {
-        let truth = values.map(|v| v[k]).unwrap_or_default();
-        let value = match predict(atlas, face, ids, &known, k, max) {
-            // A new chart: its first UV is anywhere in the atlas.
-            None => truth.map(|c| side.bypass(c, bits)),
-            Some((kind, prediction)) => code_residual(side, &mut models.residual[kind as usize], prediction, truth, max)?,
-        };
-        for j in 0..3 {
-            if ids[j] == ids[k] {
-                known[j] = Some(value);
-            }
-        }
-        new_values.push((ids[k], value));
-    }
-    new_values.sort_unstable_by_key(|&(i, _)| i);
-    atlas.uv.extend(new_values.into_iter().map(|(_, v)| v));
-    Ok(())
-}
-
-/// Codes `truth - prediction` per axis; returns the UV it stands for, which must be on the
-/// grid.
-fn code_residual<S: Side>(side: &mut S, models: &mut [IntModel; 2], prediction: [u32; 2], truth: [u32; 2], max: u32) -> Result<[u32; 2], String> {
-    let mut value = [0u32; 2];
-    for axis in 0..2 {
-        let residual = truth[axis] as i32 - prediction[axis] as i32;
-        let v = prediction[axis] as i64 + side.int(&mut models[axis], residual) as i64;
-        if !(0..=max as i64).contains(&v) {
-            return Err(format!("UV atlas: a UV coordinate {v} outside 0..={max}"));
-        }
-        value[axis] = v as u32;
-    }
-    Ok(value)
-}
-
-/// The corner of a new, not yet coded UV with the most known corners beside it.
-fn next_to_code(known: &[Option<[u32; 2]>; 3]) -> Option<usize> {
-    (0..3)
-        .filter(|&k| known[k].is_none())
-        .max_by_key(|&k| (known[(k + 1) % 3].is_some() as u32 + known[(k + 2) % 3].is_some() as u32, std::cmp::Reverse(k)))
-}
-
-/// Prediction of corner `k`'s UV from what the face and its coded neighbours know, clamped
-/// into the grid; `None` when nothing is known (a new chart).
-fn predict(atlas: &Atlas, face: &[u32; 3], ids: [u32; 3], known: &[Option<[u32; 2]>; 3], k: usize, max: u32) -> Option<(Prediction, [u32; 2])> {
-    let (b, c) = ((k + 1) % 3, (k + 2) % 3);
-    let first_new = atlas.uv.len() as u32;
-    let clamp = |p: [i64; 2]| p.map(|x| x.clamp(0, max as i64) as u32);
-    Some(match (known[b], known[c]) {
-        (Some(ub), Some(uc)) => {
-            let across = (ids[b] < first_new && ids[c] < first_new)
-                .then(|| atlas.opposite.get(&edge_key(ids[b], ids[c])))
-                .flatten()
-                .map(|&d| atlas.uv[d as usize]);
-            // Corner k lies left of b -> c in a counter-clockwise UV triangle: on the other
-            // side from the triangle across, else turning as b's chart does.
-            let chart_ccw = if ids[b] < first_new { atlas.ccw_at[ids[b] as usize] } else { atlas.ccw };
-            let left = match across.map(|ud| cross(ub, uc, ud)) {
-                Some(x) if x != 0 => x < 0,
-                _ => chart_ccw,
-            };
-            let shape = atlas.positions.and_then(|p| shape_prediction(p, face, k, ub, uc, left));
-            match (shape, across) {
-                (Some(p), Some(_)) => (Prediction::ShapeAcross, clamp(p)),
-                (Some(p), None) => (Prediction::ShapeOriented, clamp(p)),
-                (None, Some(ud)) => {
-                    (Prediction::Parallelogram, clamp(std::array::from_fn(|a| ub[a] as i64 + uc[a] as i64 - ud[a] as i64)))
-                }
-                (None, None) => (Prediction::TwoCorners, clamp(std::array::from_fn(|a| (ub[a] as i64 + uc[a] as i64) / 2))),
-            }
-        }
-        (Some(u), None) | (None, Some(u)) => {
-            let j = if known[b].is_some() { b } else { c };
-            // A UV new in this face has no coded neighbour yet.
-            let x = atlas.neighbour.get(ids[j] as usize).copied().unwrap_or(u32::MAX);
-            let shape = atlas.positions.filter(|_| x != u32::MAX).and_then(|p| {
-                let n = face_normal(p, face)?;
-                let [pa, pb] = [p[face[k] as usize], p[face[j] as usize]];
-                let px = p[atlas.vertex[x as usize] as usize];
-                tangent_prediction(pa, pb, px, n, u, atlas.uv[x as usize], atlas.ccw_at[ids[j] as usize])
-            });
-            match shape {
-                Some(p) => (Prediction::ShapeOneCorner, clamp(p)),
-                None => (Prediction::OneCorner, u),
-            }
-        }
-        (None, None) => return None,
-    })
-}
-
-/// Twice the signed area of the UV triangle (a, b, c): positive when counter-clockwise.
-fn cross(a: [u32; 2], b: [u32; 2], c: [u32; 2]) -> i64 {
-    let d = |p: [u32; 2], q: [u32; 2]| [q[0] as i64 - p[0] as i64, q[1] as i64 - p[1] as i64];
-    let (u, v) = (d(a, b), d(a, c));
-    u[0] * v[1] - u[1] * v[0]
-}
-
-/// Corner `k` placed so that its UV triangle with the known UVs `ub`, `uc` of the next two
-/// corners has the shape of the 3D triangle (a parametrization that preserves angles
-/// locally does exactly that), on the left of `ub -> uc` if `left`. `None` for a
-/// degenerate 3D edge.
-fn shape_prediction(positions: &[[f64; 3]], face: &[u32; 3], k: usize, ub: [u32; 2], uc: [u32; 2], left: bool) -> Option<[i64; 2]> {
-    let [pa, pb, pc] = [k, (k + 1) % 3, (k + 2) % 3].map(|j| positions[face[j] as usize]);
-    let (e, w) = (sub(pc, pb), sub(pa, pb));
-    let len2 = dot(e, e);
-    if len2 <= 0.0 || !len2.is_finite() {
-        return None;
-    }
-    // Along the edge, and away from it, in units of the edge length.
-    let t = dot(w, e) / len2;
-    let h = (dot(w, w) / len2 - t * t).max(0.0).sqrt();
-    let h = if left { h } else { -h };
-    let eu = [uc[0] as f64 - ub[0] as f64, uc[1] as f64 - ub[1] as f64];
-    let p = [ub[0] as f64 + t * eu[0] - h * eu[1], ub[1] as f64 + t * eu[1] + h * eu[0]];
-    p.iter().all(|x| x.is_finite()).then(|| p.map(|x| x.round().clamp(-1e9, 1e9) as i64))
-}
-
-/// Unit normal of `face` (counter-clockwise corners), `None` if degenerate.
-fn face_normal(p: &[[f64; 3]], face: &[u32; 3]) -> Option<[f64; 3]> {
-    let [a, b, c] = face.map(|v| p[v as usize]);
-    let n = cross3(sub(b, a), sub(c, a));
-    let len = dot(n, n).sqrt();
-    (len > 0.0 && len.is_finite()).then(|| n.map(|x| x / len))
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    std::array::from_fn(|i| a[i] - b[i])
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross3(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-}
-
-/// The UV of position `pa`, given the UVs `ub`, `ux` of positions `pb`, `px`: `pa` is
-/// placed relative to the edge b -> x as it lies in the tangent plane of normal `n`, turning
-/// the same way in UV space if `ccw`. `None` if the edge vanishes in that plane.
-fn tangent_prediction(pa: [f64; 3], pb: [f64; 3], px: [f64; 3], n: [f64; 3], ub: [u32; 2], ux: [u32; 2], ccw: bool) -> Option<[i64; 2]> {
-    let flat = |v: [f64; 3]| {
-        let d = dot(v, n);
-        [v[0] - d * n[0], v[1] - d * n[1], v[2] - d * n[2]]
-    };
-    let (u, w) = (flat(sub(px, pb)), flat(sub(pa, pb)));
-    let len2 = dot(u, u);
-    if len2 <= 0.0 || !len2.is_finite() {
-        return None;
-    }
-    let t = dot(w, u) / len2;
-    let h = dot(w, cross3(n, u)) / len2;
-    let h = if ccw { h } else { -h };
-    let eu = [ux[0] as f64 - ub[0] as f64, ux[1] as f64 - ub[1] as f64];
-    let p = [ub[0] as f64 + t * eu[0] - h * eu[1], ub[1] as f64 + t * eu[1] + h * eu[0]];
-    p.iter().all(|x| x.is_finite()).then(|| p.map(|x| x.round().clamp(-1e9, 1e9) as i64))
-}
-
 /// Makes the coded face `ids` of position face `face` (number `f`) available as context.
 fn record_face(atlas: &mut Atlas, face: &[u32; 3], ids: [u32; 3], f: u32) {
     atlas.last_used.resize(atlas.uv.len(), 0);
     let [a, b, c] = ids.map(|i| atlas.uv[i as usize]);
-    match cross(a, b, c) {
+    match uv_cross(a, b, c) {
         0 => {}
         x => atlas.ccw = x > 0,
     }
@@ -818,10 +417,10 @@ mod tests {
     fn bad_arguments_are_errors() {
         let Sheet { faces, uv_faces, uv, positions } = seamed_sheet(4, 4, 2);
         let data = encode_uv(&faces, &uv_faces, &uv, 12);
-        assert!(decode_uv_with_positions(&data, &positions[..15], &faces, 12).unwrap_err().contains("beyond"));
-        assert!(decode_uv(&data, &faces, 16, 0).unwrap_err().contains("bit depth"));
-        assert!(decode_uv(&data, &faces, 16, 17).unwrap_err().contains("bit depth"));
-        assert!(decode_uv(&data, &faces, 15, 12).unwrap_err().contains("beyond"));
+        assert!(decode_uv_with_positions(&data, &positions[..15], &faces, 12).unwrap_err().0.contains("beyond"));
+        assert!(decode_uv(&data, &faces, 16, 0).unwrap_err().0.contains("bit depth"));
+        assert!(decode_uv(&data, &faces, 16, 17).unwrap_err().0.contains("bit depth"));
+        assert!(decode_uv(&data, &faces, 15, 12).unwrap_err().0.contains("beyond"));
         assert!(decode_uv(&data, &faces, usize::MAX, 12).is_ok());
     }
 
@@ -841,7 +440,7 @@ mod tests {
         for len in 0..data.len() {
             match decode_uv(&data[..len], &faces, n, 12) {
                 Ok(out) => check_shape(&faces, &out, 12),
-                Err(e) => assert!(e.starts_with("UV atlas"), "{e}"),
+                Err(e) => assert!(e.0.starts_with("UV atlas"), "{e}"),
             }
         }
         assert!(decode_uv(&data[..data.len() / 2], &faces, n, 12).is_err());
@@ -976,6 +575,7 @@ mod meter {
     //! The ideal code length of each class of symbol, from shadow copies of the adaptive
     //! models (same update rule as `ec`), to see where the bits of an atlas go.
     use super::*;
+    use crate::uv_prediction::Prediction;
     use std::collections::HashMap;
 
     #[derive(Default)]

@@ -17,13 +17,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from . import api
+from .api import write_bytes_atomic
 from .mesh import Mesh
 from .synth import synth_sequence
 
@@ -140,25 +140,19 @@ def scale_lines() -> list[str]:
             for bits in range(8, 21) for qp in range(-24, 64)]
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_bytes(data)
-    os.replace(tmp, path)
-
-
 def make_vectors(out: Path) -> dict:
     """Writes every vector and the manifests into ``out``; returns the description."""
     out.mkdir(parents=True, exist_ok=True)
     lines, described = [], []
     for name, what, frames, options in vector_specs():
         result = api.encode_frames(frames, **options)
-        _write_atomic(out / f"{name}.dmsh", result.data)
+        write_bytes_atomic(out / f"{name}.dmsh", result.data)
         lines += hash_lines(f"{name}.dmsh", result.data)
         described.append({"stream": f"{name}.dmsh", "covers": what, "bytes": len(result.data),
                           "types": "".join(f["type"] for f in result.frames), "options": options})
-    _write_atomic(out / "manifest.txt", ("\n".join(lines) + "\n").encode())
-    _write_atomic(out / "scales.txt", ("\n".join(scale_lines()) + "\n").encode())
-    _write_atomic(out / "vectors.json", (json.dumps(described, indent=1) + "\n").encode())
+    write_bytes_atomic(out / "manifest.txt", ("\n".join(lines) + "\n").encode())
+    write_bytes_atomic(out / "scales.txt", ("\n".join(scale_lines()) + "\n").encode())
+    write_bytes_atomic(out / "vectors.json", (json.dumps(described, indent=1) + "\n").encode())
     return {"dir": str(out), "vectors": described}
 
 

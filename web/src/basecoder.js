@@ -21,19 +21,19 @@ const CONTEXTS = 512;
  * @returns {{positions: Uint32Array, faces: Uint32Array}} flat xyz and flat triangles
  */
 export function decodeBase(data, bits) {
-  if (!(bits >= 1 && bits <= MAX_BITS)) throw new Error(`base mesh: position bit depth ${bits} out of range`);
+  if (!(bits >= 1 && bits <= MAX_BITS)) throw new Error(`position bit depth ${bits} out of range`);
   const dec = new RangeDecoder(data);
   const header = new UIntModel(8);
   const nv = dec.uint(header);
   const nf = dec.uint(header);
   const e = dec.finish();
-  if (e) throw new Error(`base mesh header: ${e}`);
-  if (nf > data.length * MAX_FACES_PER_BYTE) throw new Error(`base mesh: ${nf} faces cannot fit in ${data.length} bytes`);
-  if (nv > 3 * nf || (nf > 0 && nv < 3)) throw new Error(`base mesh: ${nv} vertices cannot belong to ${nf} faces`);
+  if (e) throw new Error(`header: ${e}`);
+  if (nf > data.length * MAX_FACES_PER_BYTE) throw new Error(`${nf} faces cannot fit in ${data.length} bytes`);
+  if (nv > 3 * nf || (nf > 0 && nv < 3)) throw new Error(`${nv} vertices cannot belong to ${nf} faces`);
   const faces = connectivity(dec, nv, nf);
   const positions = codePositions(dec, faces, nv, bits);
   const e2 = dec.finish();
-  if (e2) throw new Error(`base mesh: ${e2}`);
+  if (e2) throw new Error(e2);
   return { positions, faces };
 }
 
@@ -179,12 +179,12 @@ function connectivity(dec, nv, nf) {
   const st = new Conn(nv, nf);
   const m = new ConnModels();
   while (st.nfaces < nf) {
-    if (dec.exhausted()) throw new Error(`base mesh: connectivity data ends at face ${st.nfaces}`);
+    if (dec.exhausted()) throw new Error(`connectivity data ends at face ${st.nfaces}`);
     const g = st.popGate();
     if (g !== null) facesAcross(dec, st, m, nv, nf, st.ga[g], st.gb[g]);
     else seed(dec, st, m, nv);
   }
-  if (st.visited() !== nv) throw new Error(`base mesh: ${st.visited()} of ${nv} vertices used`);
+  if (st.visited() !== nv) throw new Error(`${st.visited()} of ${nv} vertices used`);
   return st.faces;
 }
 
@@ -239,7 +239,7 @@ function thirdVertex(dec, st, m, nv, a, b, flipped) {
     c = a + d;
     if (c < 0 || c > 0xffffffff) c = -1;
   }
-  if (c === a || c === b || c < 0 || c >= st.visited()) throw new Error(`base mesh: face ${st.nfaces} has an impossible vertex`);
+  if (c === a || c === b || c < 0 || c >= st.visited()) throw new Error(`face ${st.nfaces} has an impossible vertex`);
   return c;
 }
 
@@ -252,10 +252,10 @@ function seed(dec, st, m, nv) {
       continue;
     }
     const back = dec.uint(m.seedIndex);
-    if (back >= visited) throw new Error(`base mesh: seed face ${st.nfaces} refers to a future vertex`);
+    if (back >= visited) throw new Error(`seed face ${st.nfaces} refers to a future vertex`);
     f[k] = visited - 1 - back;
   }
-  if (f[0] === f[1] || f[1] === f[2] || f[2] === f[0]) throw new Error(`base mesh: seed face ${st.nfaces} repeats a vertex`);
+  if (f[0] === f[1] || f[1] === f[2] || f[2] === f[0]) throw new Error(`seed face ${st.nfaces} repeats a vertex`);
   st.addFace(f[0], f[1], f[2], -1);
 }
 
@@ -490,7 +490,7 @@ function codePositions(dec, faces, n, bits) {
   const max = 2 ** bits - 1;
   let last = -1;
   for (let v = order.next(); v !== -1; v = order.next()) {
-    if (dec.exhausted()) throw new Error(`base mesh: position data ends at vertex ${v}`);
+    if (dec.exhausted()) throw new Error(`position data ends at vertex ${v}`);
     const nb = neighbourhood(v, pos, err, order, faces, adj);
     let pred, kind, cen = null, x = null;
     if (nb.nc > 0 && nb.np > 0) {
@@ -513,7 +513,7 @@ function codePositions(dec, faces, n, bits) {
       const r = roundHalfAway(pred[i]);
       const ip = Number.isNaN(r) ? 0 : Math.min(Math.max(r, 0), max);
       const p = ip + dec.int(models[kind * 3 + i]);
-      if (p < 0 || p > max) throw new Error(`base mesh: vertex ${v} lies outside the ${bits}-bit grid`);
+      if (p < 0 || p > max) throw new Error(`vertex ${v} lies outside the ${bits}-bit grid`);
       pos[3 * v + i] = p;
     }
     if (cen !== null) {
