@@ -423,7 +423,7 @@ def parser() -> argparse.ArgumentParser:
                    help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
                         f"intra (default {d['rd_slope']:g})")
     p.add_argument("--refit", action=argparse.BooleanOptionalAction, default=d["refit"],
-                   help="least-squares refit of each base mesh (intra, and the anchor of predicted frames) so that "
+                   help="least-squares refit of each base mesh (intra, and the anchor or tracked base of predicted frames) so that "
                         "its subdivision fits the input, before quantization (default: %(default)s)")
     p.add_argument("--lifting", choices=["valence", "constant"], default=d["lifting"],
                    help="update weights of the lifting transform: valence = the test model's per-level weights "
