@@ -31,6 +31,9 @@ class _Silent:
     def update(self, n: int = 1) -> None:
         pass
 
+    def set_postfix_str(self, s: str = "") -> None:
+        pass
+
 
 def _progress(total: int, desc: str, quiet: bool):
     if quiet:
