@@ -4,6 +4,7 @@
 //! frames side by side.
 
 mod colour;
+mod decode_files;
 mod meshio;
 mod obj;
 mod ply;
@@ -27,7 +28,7 @@ use dynmesh::subdivide::SchemeChoice;
 
 create_exception!(_core, DecodeError, PyValueError, "A stream that cannot be decoded; args are (message, frame or None, byte offset).");
 
-fn decode_error(e: CoreDecodeError) -> PyErr {
+pub(crate) fn decode_error(e: CoreDecodeError) -> PyErr {
     DecodeError::new_err((e.to_string(), e.frame, e.offset))
 }
 
@@ -204,6 +205,16 @@ impl Encoder {
     }
 }
 
+/// The core decoder of `data` (see [`Decoder::new`]), decoding `lod` iterations if given.
+pub(crate) fn open_decoder(data: &[u8], tolerant: bool, lod: Option<u32>) -> PyResult<decoder::Decoder> {
+    let open = if tolerant { decoder::Decoder::new_tolerant } else { decoder::Decoder::new };
+    let mut inner = open(data.to_vec()).map_err(decode_error)?;
+    if let Some(lod) = lod {
+        inner.set_lod(lod).map_err(PyValueError::new_err)?;
+    }
+    Ok(inner)
+}
+
 /// A parsed stream whose frames can be decoded in any order.
 #[pyclass(module = "dynmesh._core")]
 struct Decoder {
@@ -217,12 +228,7 @@ impl Decoder {
     #[new]
     #[pyo3(signature = (data, tolerant=false, lod=None))]
     fn new(data: &[u8], tolerant: bool, lod: Option<u32>) -> PyResult<Self> {
-        let open = if tolerant { decoder::Decoder::new_tolerant } else { decoder::Decoder::new };
-        let mut inner = open(data.to_vec()).map_err(decode_error)?;
-        if let Some(lod) = lod {
-            inner.set_lod(lod).map_err(pyo3::exceptions::PyValueError::new_err)?;
-        }
-        Ok(Self { inner })
+        Ok(Self { inner: open_decoder(data, tolerant, lod)? })
     }
 
     /// The damaged frame units: [(frame, start offset, end offset, reason)].
@@ -385,6 +391,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     uv::register(m)?;
     transfer::register(m)?;
     meshio::register(m)?;
+    decode_files::register(m)?;
     m.add("DecodeError", m.py().get_type::<DecodeError>())?;
     Ok(())
 }

@@ -345,19 +345,22 @@ pub(crate) fn polygon_note(sizes: &[usize], notes: &mut Vec<String>) {
 
 pub(crate) const ROWS_PER_BLOCK: usize = 16384;
 
-/// `f(first row, end row, out)` over blocks of rows on the rayon pool, joined into bytes.
+/// `f(first row, end row, out)` over blocks of `rows` rows on the rayon pool, in order.
+pub(crate) fn text_blocks(rows: usize, f: impl Fn(usize, usize, &mut Vec<u8>) + Sync + Send) -> Vec<Vec<u8>> {
+    (0..rows.div_ceil(ROWS_PER_BLOCK))
+        .into_par_iter()
+        .map(|b| {
+            let (lo, hi) = (b * ROWS_PER_BLOCK, ((b + 1) * ROWS_PER_BLOCK).min(rows));
+            let mut out = Vec::with_capacity(64 * (hi - lo));
+            f(lo, hi, &mut out);
+            out
+        })
+        .collect()
+}
+
+/// [`text_blocks`] with the GIL released, joined into bytes.
 pub(crate) fn format_blocks<'py>(py: Python<'py>, rows: usize, f: impl Fn(usize, usize, &mut Vec<u8>) + Sync + Send) -> PyResult<Bound<'py, PyBytes>> {
-    let blocks: Vec<Vec<u8>> = py.allow_threads(|| {
-        (0..rows.div_ceil(ROWS_PER_BLOCK))
-            .into_par_iter()
-            .map(|b| {
-                let (lo, hi) = (b * ROWS_PER_BLOCK, ((b + 1) * ROWS_PER_BLOCK).min(rows));
-                let mut out = Vec::with_capacity(64 * (hi - lo));
-                f(lo, hi, &mut out);
-                out
-            })
-            .collect()
-    });
+    let blocks = py.allow_threads(|| text_blocks(rows, f));
     let total = blocks.iter().map(Vec::len).sum();
     PyBytes::new_with(py, total, |buf| {
         let mut at = 0;
@@ -385,6 +388,39 @@ pub(crate) fn push_int(out: &mut Vec<u8>, x: i64, buf: &mut itoa::Buffer) {
     out.extend_from_slice(buf.format(x).as_bytes());
 }
 
+/// Rows `lo..hi` of `flat` (rows of `width` floats) as lines: `prefix` (if any), then the
+/// row's floats as Python's repr, space-separated.
+pub(crate) fn push_rows(out: &mut Vec<u8>, flat: &[f64], width: usize, prefix: &str, lo: usize, hi: usize) {
+    let mut buf = ryu::Buffer::new();
+    for row in flat[lo * width..hi * width].chunks_exact(width) {
+        out.extend_from_slice(prefix.as_bytes());
+        for (k, &x) in row.iter().enumerate() {
+            if k > 0 || !prefix.is_empty() {
+                out.push(b' ');
+            }
+            push_f64(out, x, &mut buf);
+        }
+        out.push(b'\n');
+    }
+}
+
+/// OBJ face lines `lo..hi` of 0-based corner indices `faces` (3 per face), with `uv_faces`
+/// after a slash when given.
+pub(crate) fn push_obj_faces<I: Copy + Into<i64>>(out: &mut Vec<u8>, faces: &[I], uv_faces: Option<&[I]>, lo: usize, hi: usize) {
+    let mut buf = itoa::Buffer::new();
+    for c in 3 * lo..3 * hi {
+        out.extend_from_slice(if c % 3 == 0 { b"f " } else { b" " });
+        push_int(out, faces[c].into() + 1, &mut buf);
+        if let Some(uv) = uv_faces {
+            out.push(b'/');
+            push_int(out, uv[c].into() + 1, &mut buf);
+        }
+        if c % 3 == 2 {
+            out.push(b'\n');
+        }
+    }
+}
+
 /// One line per row of `values` (N, W): `prefix` (if any), then the row's floats as
 /// Python's repr (shortest round trip), space-separated: `v 0.1 -2.0 1e-05`.
 #[pyfunction]
@@ -392,19 +428,7 @@ pub(crate) fn format_rows<'py>(py: Python<'py>, values: PyReadonlyArray2<'py, f6
     let width = values.as_array().ncols();
     let flat = contiguous(&values, width, "values")?;
     let rows = flat.len().checked_div(width).unwrap_or(0);
-    format_blocks(py, rows, |lo, hi, out| {
-        let mut buf = ryu::Buffer::new();
-        for row in flat[lo * width..hi * width].chunks_exact(width) {
-            out.extend_from_slice(prefix.as_bytes());
-            for (k, &x) in row.iter().enumerate() {
-                if k > 0 || !prefix.is_empty() {
-                    out.push(b' ');
-                }
-                push_f64(out, x, &mut buf);
-            }
-            out.push(b'\n');
-        }
-    })
+    format_blocks(py, rows, |lo, hi, out| push_rows(out, &flat, width, prefix, lo, hi))
 }
 
 /// OBJ face lines from 0-based faces (M, 3): `f 1 2 3`, or `f 1/1 2/2 3/3` with uv_faces.
@@ -416,20 +440,66 @@ pub(crate) fn format_obj_faces<'py>(py: Python<'py>, faces: PyReadonlyArray2<'py
     if uv_faces.as_ref().is_some_and(|u| u.len() != faces.len()) {
         return Err(PyValueError::new_err("uv_faces and faces differ in shape"));
     }
-    format_blocks(py, faces.len() / 3, |lo, hi, out| {
-        let mut buf = itoa::Buffer::new();
-        for c in 3 * lo..3 * hi {
-            out.extend_from_slice(if c % 3 == 0 { b"f " } else { b" " });
-            push_int(out, faces[c] + 1, &mut buf);
-            if let Some(uv) = &uv_faces {
-                out.push(b'/');
-                push_int(out, uv[c] + 1, &mut buf);
-            }
-            if c % 3 == 2 {
+    format_blocks(py, faces.len() / 3, |lo, hi, out| push_obj_faces(out, &faces, uv_faces.as_deref(), lo, hi))
+}
+
+/// Rows `lo..hi` of a PLY body: rows below the vertex count are vertex rows of `width`
+/// doubles, the others faces as `list uchar int`, each followed by its `texcoord` (6
+/// doubles) when given. ASCII rows use Python's float repr; binary is little endian. Face
+/// indices must fit an i32.
+pub(crate) fn push_ply_rows<I: Copy + Into<i64>>(
+    out: &mut Vec<u8>,
+    vertex: &[f64],
+    width: usize,
+    faces: &[I],
+    texcoord: Option<&[f64]>,
+    ascii: bool,
+    lo: usize,
+    hi: usize,
+) {
+    let rows = vertex.len().checked_div(width).unwrap_or(0);
+    let (mut fbuf, mut ibuf) = (ryu::Buffer::new(), itoa::Buffer::new());
+    for r in lo..hi {
+        if r < rows {
+            let row = &vertex[r * width..(r + 1) * width];
+            if ascii {
+                for (k, &x) in row.iter().enumerate() {
+                    if k > 0 {
+                        out.push(b' ');
+                    }
+                    push_f64(out, x, &mut fbuf);
+                }
                 out.push(b'\n');
+            } else {
+                row.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+            }
+            continue;
+        }
+        let f = r - rows;
+        let tc = texcoord.map(|t| &t[6 * f..6 * f + 6]);
+        if ascii {
+            out.push(b'3');
+            for &i in &faces[3 * f..3 * f + 3] {
+                out.push(b' ');
+                push_int(out, i.into(), &mut ibuf);
+            }
+            if let Some(tc) = tc {
+                out.extend_from_slice(b" 6");
+                for &x in tc {
+                    out.push(b' ');
+                    push_f64(out, x, &mut fbuf);
+                }
+            }
+            out.push(b'\n');
+        } else {
+            out.push(3);
+            faces[3 * f..3 * f + 3].iter().for_each(|&i| out.extend_from_slice(&(i.into() as i32).to_le_bytes()));
+            if let Some(tc) = tc {
+                out.push(6);
+                tc.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
             }
         }
-    })
+    }
 }
 
 /// The body of a PLY file after its header: vertex rows (N, W) of doubles, then faces
@@ -455,52 +525,8 @@ pub(crate) fn ply_body<'py>(
         return Err(PyValueError::new_err("a face index does not fit PLY int"));
     }
     let rows = vertex.len().checked_div(width).unwrap_or(0);
-    let nf = faces.len() / 3;
     // Rows 0..rows are vertices, rows..rows + nf faces.
-    format_blocks(py, rows + nf, |lo, hi, out| {
-        let (mut fbuf, mut ibuf) = (ryu::Buffer::new(), itoa::Buffer::new());
-        for r in lo..hi {
-            if r < rows {
-                let row = &vertex[r * width..(r + 1) * width];
-                if ascii {
-                    for (k, &x) in row.iter().enumerate() {
-                        if k > 0 {
-                            out.push(b' ');
-                        }
-                        push_f64(out, x, &mut fbuf);
-                    }
-                    out.push(b'\n');
-                } else {
-                    row.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
-                }
-                continue;
-            }
-            let f = r - rows;
-            let tc = texcoord.as_ref().map(|t| &t[6 * f..6 * f + 6]);
-            if ascii {
-                out.push(b'3');
-                for &i in &faces[3 * f..3 * f + 3] {
-                    out.push(b' ');
-                    push_int(out, i, &mut ibuf);
-                }
-                if let Some(tc) = tc {
-                    out.extend_from_slice(b" 6");
-                    for &x in tc {
-                        out.push(b' ');
-                        push_f64(out, x, &mut fbuf);
-                    }
-                }
-                out.push(b'\n');
-            } else {
-                out.push(3);
-                faces[3 * f..3 * f + 3].iter().for_each(|&i| out.extend_from_slice(&(i as i32).to_le_bytes()));
-                if let Some(tc) = tc {
-                    out.push(6);
-                    tc.iter().for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
-                }
-            }
-        }
-    })
+    format_blocks(py, rows + faces.len() / 3, |lo, hi, out| push_ply_rows(out, &vertex, width, &faces, texcoord.as_deref(), ascii, lo, hi))
 }
 
 #[cfg(test)]

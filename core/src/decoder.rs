@@ -79,7 +79,9 @@ struct State {
 
 /// A checked stream whose frames can be decoded in any order. Predicted frames are decoded
 /// from the intra frame before them; the last decoded frame's state is kept, so decoding
-/// in order costs one frame's work per frame.
+/// in order costs one frame's work per frame. A clone decodes on its own (threads decoding
+/// independent frames each take one).
+#[derive(Clone)]
 pub struct Decoder {
     data: Vec<u8>,
     header: SequenceHeader,

@@ -11,11 +11,12 @@ import numpy as np
 
 from . import _core
 from . import texture as _texture
+from .defaults import ENCODER
 from .io import _atomic_write, read_image
 from .mesh import Mesh
 
 #: Encoder defaults, as the Rust core defines them; ``dynmesh encode --help`` documents each.
-DEFAULTS: dict = dict(_core.default_options())
+DEFAULTS: dict = ENCODER
 
 
 class DecodeError(ValueError):

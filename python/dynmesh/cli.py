@@ -4,32 +4,48 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import importlib.util
-import json
 import sys
-import tempfile
 import time
 from pathlib import Path
 
-import numpy as np
-
-from . import api, parallel, texture, video
-from .io import MeshError, read_mesh, write_mesh
+# The API, numpy and the file readers are imported by the commands that use them:
+# `dynmesh decode` needs none of them, and importing them would cost it more than decoding.
+from .defaults import ENCODER, TEXTURE, TEXTURE_CODECS
 from .safety import StagedDirectory, mesh_inputs, refuse_inputs
-from .sequence import SequenceError, resolve_sequence
+from .sequence import resolve_sequence
 
 
 class CliError(Exception):
     """An error to report to the user, without a traceback."""
 
 
+class _Silent:
+    """The progress bar of a quiet command."""
+
+    def __enter__(self) -> _Silent:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        pass
+
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def set_postfix_str(self, s: str = "") -> None:
+        pass
+
+
 def _progress(total: int, desc: str, quiet: bool):
+    if quiet:
+        return _Silent()
     from tqdm import tqdm  # a fifth of a second to import: only commands that show progress pay it
 
     return tqdm(total=total, desc=desc, unit="frame", disable=quiet or None, file=sys.stderr, leave=False)
 
 
 def _read_sequence(spec: str, start: int | None, count: int | None, quiet: bool) -> tuple[list[Path], list]:
+    from .io import read_mesh
+
     paths = resolve_sequence(spec, start, count)
     with _progress(len(paths), "reading", quiet) as bar:
         meshes = []
@@ -58,6 +74,11 @@ def _encoder_options(a) -> dict:
 def _scan_sequence(paths: list[Path], quiet: bool) -> tuple[np.ndarray, np.ndarray, list[Path], list[bool]]:
     """First pass over the frames, one in memory at a time: the sequence box, the texture
     files they use, and which frames are textured."""
+    import numpy as np
+
+    from . import api
+    from .io import read_mesh
+
     lo, hi, textures, textured = np.full(3, np.inf), np.full(3, -np.inf), [], []
     with _progress(len(paths), "reading", quiet) as bar:
         for i, p in enumerate(paths):
@@ -76,6 +97,8 @@ def _scan_sequence(paths: list[Path], quiet: bool) -> tuple[np.ndarray, np.ndarr
 def cmd_encode(a) -> dict:
     # Two passes over the files: the header needs the sequence box before the first frame,
     # and holding every frame would make memory grow with the sequence.
+    from . import api, parallel
+
     _check_jobs(a)
     paths = resolve_sequence(a.input, a.start, a.count)
     refuse_inputs(a.output, paths)
@@ -109,37 +132,42 @@ def cmd_encode(a) -> dict:
 
 
 def cmd_decode(a) -> dict:
-    from .conformance import frame_hash
+    from . import _core
 
     data = _read_bytes(a.input)
     if a.output is None and not a.hash:
         raise CliError("give an output directory (-o) or --hash")
     if a.output is not None:
         refuse_inputs(a.output, [a.input], "output directory")
-    stream = api.info(data)
-    n = stream["header"]["frame_count"]
-    if stream["damaged"] and not a.skip_damaged:
-        d = stream["damaged"][0]
-        raise CliError(f"{a.input}: frame {d['frame']}, byte offset {d['offset']}: {d['reason']} "
-                       f"({len(stream['damaged'])} damaged frame(s); --skip-damaged decodes the others)")
+    try:
+        stream = _core.Decoder(data, True)
+    except _core.DecodeError as e:
+        raise CliError(e.args[0]) from None
+    n, units = stream.frame_count, stream.damage()
+    if units and not a.skip_damaged:
+        frame, offset, _, reason = units[0]
+        raise CliError(f"{a.input}: frame {frame}, byte offset {offset}: {reason} "
+                       f"({len(units)} damaged frame(s); --skip-damaged decodes the others)")
+    # Frames without textures, as OBJ or PLY, are decoded and written by the core in one call.
+    by_core = a.format in ("obj", "ply") and not _textured(stream)
     written, damaged, hashes = [], [], []
     start = time.perf_counter()
-    frames = api.decode_each(data, lod=a.lod) if a.skip_damaged else enumerate(api.decode(data, lod=a.lod))
     with _staged_or_none(a.output) as out, _progress(n, "decoding", a.quiet or (a.hash and not a.json)) as bar:
-        for i, mesh in frames:
-            if isinstance(mesh, api.DecodeError):
-                damaged.append({"frame": i, "offset": mesh.offset, "reason": str(mesh)})
-            else:
-                if a.hash:
-                    hashes.append(frame_hash(mesh))
-                    if not a.json:
-                        print(f"frame {i} sha256 {hashes[-1]}", flush=True)
-                if out is not None:
-                    name = f"frame_{i:04d}.{a.format}"
-                    refuse_inputs(out.final(name), [a.input])
-                    _write_frame(out.path(name), mesh)
-                    written.append(str(out.final(name)))
-            bar.update()
+        frames = _decoded_by_core(data, a, out, bar) if by_core else _decoded_by_api(data, a, out, bar)
+        for i, digest, failure in frames:
+            if failure is not None:
+                if not a.skip_damaged:
+                    raise CliError(failure[1])
+                damaged.append({"frame": i, "offset": failure[0], "reason": failure[1]})
+                continue
+            if a.hash:
+                hashes.append(digest)
+                if not a.json:
+                    print(f"frame {i} sha256 {digest}", flush=True)
+            if out is not None:
+                final = out.final(_frame_name(i, a.format))
+                refuse_inputs(final, [a.input])
+                written.append(str(final))
         if not written and not hashes:
             raise CliError(f"no frame of {a.input} decodes" + (f" (first: {damaged[0]['reason']})" if damaged else ""))
         if out is not None:
@@ -157,12 +185,61 @@ def cmd_decode(a) -> dict:
     return {"frames": written, "seconds": seconds, "damaged": damaged, **({"sha256": hashes} if a.hash else {})}
 
 
+def _frame_name(index: int, extension: str) -> str:
+    return f"frame_{index:04d}.{extension}"
+
+
+def _textured(stream) -> bool:
+    """Whether a stream carries textures: its first frame has a texture unit (as
+    ``texture.TextureDecoder.textured`` decides, a damaged one included)."""
+    try:
+        return stream.texture_payload(0) is not None
+    except ValueError:
+        return True
+
+
+def _decoded_by_core(data: bytes, a, out, bar):
+    """(frame, sha256 or None, None or (offset, reason) of its DecodeError) per frame, in
+    order, every frame decoded and written into ``out`` by ``_core.decode_to_files``; an
+    error writing a frame is raised."""
+    from . import _core
+
+    on_frame = None if isinstance(bar, _Silent) else bar.update
+    results = _core.decode_to_files(data, None if out is None else str(out.stage), a.format, a.lod,
+                                    a.skip_damaged, a.hash, on_frame)
+    for i, digest, error in results:
+        if error is not None and not isinstance(error, _core.DecodeError):
+            raise error
+        yield i, digest, None if error is None else (error.args[2], error.args[0])
+
+
+def _decoded_by_api(data: bytes, a, out, bar):
+    """As ``_decoded_by_core``, through ``dynmesh.api`` (textured frames, glTF), each frame
+    written into ``out`` before it is yielded."""
+    from . import api
+    from .conformance import frame_hash
+
+    frames = api.decode_each(data, lod=a.lod) if a.skip_damaged else enumerate(api.decode(data, lod=a.lod))
+    for i, mesh in frames:
+        bar.update()
+        if isinstance(mesh, api.DecodeError):
+            yield i, None, (mesh.offset, str(mesh))
+            continue
+        digest = frame_hash(mesh) if a.hash else None
+        if out is not None:
+            _write_frame(out.path(_frame_name(i, a.format)), mesh)
+        yield i, digest, None
+
+
 def _staged_or_none(output):
     """A staged output directory, or nothing to write into (``--hash`` alone)."""
     return contextlib.nullcontext() if output is None else StagedDirectory(output)
 
 
 def _write_frame(path: Path, mesh) -> Path:
+    from . import api
+    from .io import write_mesh
+
     if path.suffix == ".glb":
         from .gltf import glb_bytes
 
@@ -179,6 +256,8 @@ def cmd_play(a) -> dict:
 
 
 def cmd_info(a) -> dict:
+    from . import api
+
     result = api.info(_read_bytes(a.input))
     if not a.json:
         h = result["header"]
@@ -200,6 +279,8 @@ def cmd_info(a) -> dict:
 
 
 def cmd_metrics(a) -> dict:
+    from . import api
+
     _, refs = _read_sequence(a.reference, a.start, a.count, a.quiet)
     _, decs = _read_sequence(a.decoded, None, None, a.quiet)
     result = api.metrics(refs, decs, peak=a.peak, grid_size=a.grid_size)
@@ -227,6 +308,8 @@ def cmd_synth(a) -> dict:
 
 
 def cmd_demo(a) -> dict:
+    import tempfile
+
     from .report import bd_rate
     from .synth import synth_sequence, write_sequence
 
@@ -258,6 +341,9 @@ DEMO_STEP = 0.25 / 7
 
 def _demo_rate(meshes, raw: int, qp: int, work: Path) -> dict:
     """One QP of the demo: the default encoder and all-intra, decoded, measured and kept."""
+    from . import api
+    from .io import write_mesh
+
     t0 = time.perf_counter()
     result = api.encode_frames(meshes, qp=qp)
     enc_s = time.perf_counter() - t0
@@ -284,6 +370,8 @@ EVAL_MODULES = ("DracoPy", "matplotlib")
 
 def _require_eval_extra() -> None:
     """Fails before any work when the `eval` extra is not installed, rather than midway."""
+    import importlib.util
+
     missing = [name for name in EVAL_MODULES if importlib.util.find_spec(name) is None]
     if missing:
         raise CliError(f"needs {' and '.join(missing)}, which the codec itself does not: "
@@ -385,7 +473,7 @@ def _common(p):
 
 
 def parser() -> argparse.ArgumentParser:
-    d = api.DEFAULTS
+    d = ENCODER
     top = argparse.ArgumentParser(prog="dynmesh", description="Codec for dynamic 3D meshes with time-varying topology.")
     sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
@@ -433,13 +521,13 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--aq-alpha", type=float, default=d["aq_alpha"], help=f"AQ step factor alpha (default {d['aq_alpha']:g})")
     p.add_argument("--aq-delta", type=float, default=d["aq_delta"], help=f"AQ lattice offset delta, |delta| < 1 (default {d['aq_delta']:g})")
     p.add_argument("--aq-h", type=float, default=d["aq_h"], help=f"AQ valence normalisation h (default {d['aq_h']:g})")
-    t = texture.TEXTURE_DEFAULTS
+    t = TEXTURE
     p.add_argument("--texture", action=argparse.BooleanOptionalAction, default=None,
                    help="code the frames' textures (default: when every frame has UVs and a texture image)")
     p.add_argument("--texture-size", type=int, default=t["texture_size"],
                    help=f"side of the texture atlas in texels (default {t['texture_size']})")
     p.add_argument("--texture-qp", type=int, default=t["texture_qp"], help=f"texture video QP, 0-51 (default {t['texture_qp']})")
-    p.add_argument("--texture-codec", choices=list(video.CODECS), default=t["texture_codec"],
+    p.add_argument("--texture-codec", choices=list(TEXTURE_CODECS), default=t["texture_codec"],
                    help=f"texture video codec: HEVC (libx265) or AV1 (libsvtav1), 10-bit 4:2:0 (default {t['texture_codec']})")
     _parallel_args(p, "groups of --intra-period frames encoded")
     _common(p)
@@ -528,19 +616,28 @@ def _message(e: Exception) -> str:
     return str(e)
 
 
+def _reported_errors() -> tuple[type[BaseException], ...]:
+    """The exceptions reported in one line rather than a traceback: the user's errors
+    (MeshError, SequenceError and DecodeError are ValueErrors), and a worker's failure when
+    the command used workers (a module it did not import raised nothing)."""
+    parallel = sys.modules.get(f"{__package__}.parallel")
+    return (CliError, ValueError, OSError, MemoryError) + ((parallel.WorkerError,) if parallel else ())
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parser().parse_args(argv)
     args.failure = None  # set by a command that did its work but must still exit non-zero
     try:
         result = args.run(args)
-    except (CliError, MeshError, SequenceError, api.DecodeError, parallel.WorkerError, ValueError, OSError,
-            MemoryError) as e:
+    except _reported_errors() as e:
         print(f"dynmesh {args.command}: error: {_message(e)}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
     if args.json:
+        import json
+
         json.dump(result, sys.stdout, indent=1, default=str)
         print()
     if args.failure:

@@ -11,8 +11,6 @@ only when the command succeeds, and removed when it fails.
 from __future__ import annotations
 
 import os
-import secrets
-import shutil
 from collections.abc import Iterable
 from pathlib import Path
 
@@ -60,7 +58,8 @@ class StagedDirectory:
         # Missing parents are made, and removed again if the command fails.
         missing = [p for p in [parent, *parent.parents] if not p.exists()]
         self._made_parents = missing[::-1]
-        self.stage = parent / f".{self.target.name}.{os.getpid()}.{secrets.token_hex(4)}.tmp"
+        # os.urandom is what secrets.token_hex draws from, without importing hmac and random.
+        self.stage = parent / f".{self.target.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp"
         try:
             for p in self._made_parents:
                 p.mkdir()
@@ -85,6 +84,8 @@ class StagedDirectory:
         self.stage.rmdir()
 
     def discard(self) -> None:
+        import shutil  # only a failed command needs it
+
         shutil.rmtree(self.stage, ignore_errors=True)
         self._remove_made_parents()
 

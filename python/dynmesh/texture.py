@@ -21,10 +21,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _core, atlas, video
+from .defaults import TEXTURE
 from .mesh import Mesh
 
 #: Defaults of the texture options (``encode_frames`` takes them beside the geometry ones).
-TEXTURE_DEFAULTS: dict = {"texture_size": 2048, "texture_qp": 32, "texture_codec": "hevc"}
+TEXTURE_DEFAULTS: dict = TEXTURE
 
 _FIXED = struct.Struct("<BBHHBI")
 _VERSION = 1

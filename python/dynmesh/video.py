@@ -15,9 +15,10 @@ import os
 import numpy as np
 
 from . import _core
+from .defaults import TEXTURE_CODECS
 
 #: Codec names as the stream signals them (the index is the code).
-CODECS = ("hevc", "av1")
+CODECS = TEXTURE_CODECS
 
 #: libx265 preset: "ultrafast" keeps a 2048 x 2048 frame near half a second on two cores
 #: (``bench/bench_texture.py`` measures the presets).

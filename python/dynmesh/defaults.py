@@ -1,0 +1,15 @@
+"""Option defaults, importable without numpy: the command line's parser needs them for every
+command, and ``dynmesh decode`` should not pay for the modules that use them."""
+
+from __future__ import annotations
+
+from . import _core
+
+#: Encoder defaults, as the Rust core defines them; ``dynmesh encode --help`` documents each.
+ENCODER: dict = dict(_core.default_options())
+
+#: Defaults of the texture options (``encode_frames`` takes them beside the geometry ones).
+TEXTURE: dict = {"texture_size": 2048, "texture_qp": 32, "texture_codec": "hevc"}
+
+#: Texture video codec names as the stream signals them (the index is the code).
+TEXTURE_CODECS = ("hevc", "av1")
