@@ -102,23 +102,9 @@ pub fn fit_displacements_with(
     normal_only: bool,
     params: &FitParams,
 ) -> Vec<[f64; 3]> {
-    fit_with_triangles(sub_positions, sub_faces, frames, target, normal_only, params).0
-}
-
-/// [`fit_displacements_with`], and per vertex the target triangle it was fitted to (the
-/// crossed one, else the closest to the vertex): where a search near the fitted vertex
-/// should start.
-fn fit_with_triangles(
-    sub_positions: &[[f64; 3]],
-    sub_faces: &[[u32; 3]],
-    frames: &[Frame],
-    target: &Bvh,
-    normal_only: bool,
-    params: &FitParams,
-) -> (Vec<[f64; 3]>, Vec<u32>) {
     assert_eq!(sub_positions.len(), frames.len(), "fit_displacements: one frame per vertex");
     if target.is_empty() {
-        return (vec![[0.0; 3]; sub_positions.len()], vec![u32::MAX; sub_positions.len()]);
+        return vec![[0.0; 3]; sub_positions.len()];
     }
     let first: Vec<FirstFit> = sub_positions
         .par_iter()
@@ -126,12 +112,12 @@ fn fit_with_triangles(
         .map(|(&v, f)| first_fit(v, f[0], target, params))
         .collect();
     let means = if normal_only { neighbour_hit_means(&first, sub_faces) } else { Vec::new() };
-    let displacements = (0..sub_positions.len())
+    (0..sub_positions.len())
         .into_par_iter()
         .map(|i| {
             let (v, n) = (sub_positions[i], frames[i][0]);
             match &first[i] {
-                FirstFit::Hit { s, .. } => scale(n, *s),
+                FirstFit::Hit(s) => scale(n, *s),
                 FirstFit::Miss { closest, .. } if !normal_only => sub(closest.point, v),
                 FirstFit::Miss { closest, limit } => {
                     let mean = means.binary_search_by_key(&(i as u32), |m| m.0).ok();
@@ -140,14 +126,13 @@ fn fit_with_triangles(
                 }
             }
         })
-        .collect();
-    (displacements, first.iter().map(FirstFit::triangle).collect())
+        .collect()
 }
 
 /// What a vertex learns from its own queries.
 enum FirstFit {
-    /// Offset of the trusted crossing, and the triangle crossed.
-    Hit { s: f64, triangle: u32 },
+    /// Offset of the trusted crossing.
+    Hit(f64),
     /// No trusted crossing; `limit` is the largest `|s|` trusted for this vertex.
     Miss { closest: SurfacePoint, limit: f64 },
 }
@@ -155,15 +140,8 @@ enum FirstFit {
 impl FirstFit {
     fn hit(&self) -> Option<f64> {
         match *self {
-            FirstFit::Hit { s, .. } => Some(s),
+            FirstFit::Hit(s) => Some(s),
             FirstFit::Miss { .. } => None,
-        }
-    }
-
-    fn triangle(&self) -> u32 {
-        match self {
-            FirstFit::Hit { triangle, .. } => *triangle,
-            FirstFit::Miss { closest, .. } => closest.triangle,
         }
     }
 }
@@ -179,7 +157,7 @@ fn closest_to(target: &Bvh, x: [f64; 3]) -> SurfacePoint {
 fn first_fit(v: [f64; 3], n: [f64; 3], target: &Bvh, p: &FitParams) -> FirstFit {
     if let Some(h) = target.intersect_line(v, n, f64::INFINITY) {
         if !target.any_within(v, (h.t.abs() - p.hit_slack) / p.hit_ratio) {
-            return FirstFit::Hit { s: h.t, triangle: h.triangle };
+            return FirstFit::Hit(h.t);
         }
     }
     let closest = closest_to(target, v);
@@ -201,12 +179,7 @@ fn fallback_offset(
     // Beyond the trusted range the nearest surface may be another sheet. (Not `f64::clamp`,
     // which panics on a negative range from negative parameters.)
     let clamp = |s: f64| s.max(-limit).min(limit);
-    // Searched from the triangle closest to `v`, near every candidate: the same distances
-    // (see `Bvh::closest_point_near`) for less of the hierarchy visited.
-    let dist2 = |s: f64| {
-        let x = add(v, scale(n, s));
-        target.closest_point_near(x, closest.triangle).map_or(0.0, |c| c.dist2)
-    };
+    let dist2 = |s: f64| closest_to(target, add(v, scale(n, s))).dist2;
     let first = clamp(dot(sub(closest.point, v), n));
     let others = [plane_offset(v, n, closest, target), neighbour_mean];
     let pick = |best: (f64, f64), s: f64| {
@@ -292,9 +265,9 @@ pub fn fit_normal_displacements(
     target: &Bvh,
     params: &RefineParams,
 ) -> Vec<[f64; 3]> {
-    let (first, triangles) = fit_with_triangles(sub_positions, sub_faces, frames, target, true, &FitParams::default());
+    let first = fit_displacements(sub_positions, sub_faces, frames, target, true);
     let offsets: Vec<f64> = first.iter().zip(frames).map(|(&d, f)| dot(d, f[0])).collect();
-    let refined = refine_from(sub_positions, sub_faces, frames, target, &offsets, triangles, params);
+    let refined = refine_normal_fit(sub_positions, sub_faces, frames, target, &offsets, params);
     frames.iter().zip(refined).map(|(f, s)| scale(f[0], s)).collect()
 }
 
@@ -316,20 +289,6 @@ pub fn refine_normal_fit(
     offsets: &[f64],
     params: &RefineParams,
 ) -> Vec<f64> {
-    refine_from(sub_positions, sub_faces, frames, target, offsets, vec![u32::MAX; offsets.len()], params)
-}
-
-/// [`refine_normal_fit`], the first round's closest-point searches started from
-/// `input_hints` (one target triangle per vertex; out of range for none).
-fn refine_from(
-    sub_positions: &[[f64; 3]],
-    sub_faces: &[[u32; 3]],
-    frames: &[Frame],
-    target: &Bvh,
-    offsets: &[f64],
-    mut input_hints: Vec<u32>,
-    params: &RefineParams,
-) -> Vec<f64> {
     assert_eq!(sub_positions.len(), frames.len(), "refine_normal_fit: one frame per vertex");
     assert_eq!(offsets.len(), frames.len(), "refine_normal_fit: one offset per vertex");
     let mut s = offsets.to_vec();
@@ -343,6 +302,7 @@ fn refine_from(
     // Each round's closest triangles seed the next round's searches, and the fitted
     // surface's hierarchy is refitted rather than rebuilt: the answers stay those of plain
     // queries (see `Bvh::closest_point_near`), at a fraction of the cost.
+    let mut input_hints = vec![u32::MAX; s.len()];
     let mut surface_hints = vec![u32::MAX; samples.len()];
     let mut surface: Option<Bvh> = None;
     for round in 0..params.rounds {
