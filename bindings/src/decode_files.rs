@@ -26,10 +26,10 @@ use pyo3::types::PyTuple;
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
-use dynmesh::bitstream::FrameType;
+use dynmesh::stream::bitstream::FrameType;
 use dynmesh::decoder::Decoder;
 use dynmesh::error::DecodeError as CoreDecodeError;
-use dynmesh::mesh::Mesh;
+use dynmesh::geom::mesh::Mesh;
 
 use crate::meshio::{push_obj_faces, push_ply_rows, push_rows, text_blocks};
 

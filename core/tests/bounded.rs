@@ -3,7 +3,7 @@
 use std::time::Instant;
 
 use dynmesh::encoder::{EncoderConfig, SequenceEncoder};
-use dynmesh::mesh::Mesh;
+use dynmesh::geom::mesh::Mesh;
 
 fn encode_error(m: &Mesh) -> String {
     let (lo, hi) = m.bounds().unwrap();
