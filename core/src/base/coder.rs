@@ -177,7 +177,7 @@ mod tests {
 
     /// Icosahedron subdivided `levels` times, projected on a sphere (20 * 4^levels faces).
     fn icosphere(levels: u32, bits: u32) -> IntMesh {
-        let (p, f) = crate::geom::bvh::testmesh::icosphere(levels, 1.0);
+        let (p, f) = crate::geom::testmesh::icosphere(levels, 1.0);
         (p.iter().map(|v| scale(v.map(|c| 0.5 + 0.5 * c), bits)).collect(), f)
     }
 

@@ -407,7 +407,7 @@ fn triangle_box(c: [[f64; 3]; 3]) -> Aabb {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::bvh::testmesh::{grid, uv_sphere, Rng};
+    use crate::geom::testmesh::{grid, uv_sphere, Rng};
     use crate::geom::mesh::interpolate;
 
     #[test]

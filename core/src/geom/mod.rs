@@ -11,3 +11,5 @@ pub mod grid;
 pub mod quadric;
 pub mod bvh;
 pub mod closest;
+#[cfg(test)]
+pub(crate) mod testmesh;

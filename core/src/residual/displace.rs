@@ -443,7 +443,7 @@ fn ring_smoothed(rings: &Adjacency, s: &[f64], weight: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::bvh::testmesh::{grid, icosphere, midpoint, timed, uv_sphere, Rng, Soup};
+    use crate::geom::testmesh::{grid, icosphere, midpoint, timed, uv_sphere, Rng, Soup};
     use crate::geom::mesh::norm;
 
     fn moved(pos: &[[f64; 3]], d: &[[f64; 3]]) -> Vec<[f64; 3]> {

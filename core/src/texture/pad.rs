@@ -133,7 +133,7 @@ fn fill_texture(texture: &mut Texture, covered: &[bool], coarse: &Level) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::bvh::testmesh::Rng;
+    use crate::geom::testmesh::Rng;
 
     /// A texture of pseudo-random colours: any misplaced texel shows.
     fn noise(width: usize, height: usize, seed: u64) -> Texture {

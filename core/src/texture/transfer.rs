@@ -419,7 +419,7 @@ fn nearest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::bvh::testmesh::{midpoint, Rng, Soup};
+    use crate::geom::testmesh::{midpoint, Rng, Soup};
     use crate::geom::bvh::{closest_on_triangle, Bvh};
     use crate::geom::mesh::{scale, Mesh};
     use crate::texture::pad::pad;

@@ -118,7 +118,7 @@ mod tests {
 
     /// A `n` x `n` grid of unit spacing in the plane z = 0, moved by `offset`.
     fn sheet(n: u32, offset: [f64; 3]) -> Mesh {
-        let (p, f) = crate::geom::bvh::testmesh::grid(n, n, 1.0, offset);
+        let (p, f) = crate::geom::testmesh::grid(n, n, 1.0, offset);
         Mesh::new(p, f)
     }
 

@@ -136,7 +136,7 @@ mod tests {
     /// A tent: two planes meeting at a ridge along x = 0, sampled on a grid of unit spacing.
     fn tent(n: i32) -> Mesh {
         let w = (2 * n + 1) as u32;
-        let (p, f) = crate::geom::bvh::testmesh::grid(w, w, 1.0, [-n as f64, -n as f64, 0.0]);
+        let (p, f) = crate::geom::testmesh::grid(w, w, 1.0, [-n as f64, -n as f64, 0.0]);
         Mesh::new(p.into_iter().map(|q| [q[0], q[1], -q[0].abs()]).collect(), f)
     }
 
