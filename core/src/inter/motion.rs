@@ -8,7 +8,7 @@
 //! and otherwise three signed integers with adaptive models.
 
 use crate::geom::mesh::Adjacency;
-use crate::stream::ec::{self, BitModel, IntModel};
+use crate::stream::ec::{self, BitModel, DecSide, EncSide, IntModel, Side};
 
 /// Coding contexts, shared by encoder and decoder so that both adapt identically.
 struct Models {
@@ -76,45 +76,49 @@ fn div_round(a: i64, b: i64) -> i64 {
 /// vertices, connectivity `faces`). Both slices must have the same length.
 pub fn encode_motion(enc: &mut ec::Encoder, reference: &[[u32; 3]], current: &[[u32; 3]], faces: &[[u32; 3]]) {
     assert_eq!(reference.len(), current.len(), "motion needs the reference's vertices");
-    let n = reference.len();
-    let adjacency = Adjacency::new(n, faces);
-    let mut models = Models::new();
-    let mut motion = vec![None; n];
-    let mut skipped = vec![false; n];
-    for v in coding_order(&adjacency, n) {
-        let v = v as usize;
-        let (pred, ctx) = prediction(v, &adjacency, &motion, &skipped);
-        let actual: [i64; 3] = std::array::from_fn(|k| current[v][k] as i64 - reference[v][k] as i64);
-        let residual: [i64; 3] = std::array::from_fn(|k| actual[k] - pred[k]);
-        let skip = residual == [0; 3];
-        enc.bit(&mut models.skip[ctx], skip);
-        if !skip {
-            for (model, r) in models.residual.iter_mut().zip(residual) {
-                enc.int(model, r as i32);
-            }
-        }
-        motion[v] = Some(actual);
-        skipped[v] = skip;
-    }
+    code_motion(&mut EncSide(enc), reference, Some(current), faces, u32::MAX.into());
 }
 
 /// Decodes what [`encode_motion`] wrote: the current positions of the reference's vertices
 /// on a grid of `bits` bits. `None` if the data is truncated, corrupt, or moves a vertex
 /// off the grid.
 pub fn decode_motion(dec: &mut ec::Decoder, reference: &[[u32; 3]], faces: &[[u32; 3]], bits: u32) -> Option<Vec<[u32; 3]>> {
+    let current = code_motion(&mut DecSide(dec), reference, None, faces, (1i64 << bits) - 1)?;
+    dec.finish().ok()?;
+    Some(current)
+}
+
+/// Both directions of the motion coding: the encoder passes `current` and gets it back, the
+/// decoder passes `None` and gets what it reads, or `None` when the data runs out or moves a
+/// vertex off the grid `0..=max`.
+fn code_motion(
+    side: &mut impl Side,
+    reference: &[[u32; 3]],
+    current: Option<&[[u32; 3]]>,
+    faces: &[[u32; 3]],
+    max: i64,
+) -> Option<Vec<[u32; 3]>> {
     let n = reference.len();
-    let max = (1i64 << bits) - 1;
     let adjacency = Adjacency::new(n, faces);
     let mut models = Models::new();
     let mut motion = vec![None; n];
     let mut skipped = vec![false; n];
-    let mut current = vec![[0u32; 3]; n];
+    let mut out = vec![[0u32; 3]; n];
     for v in coding_order(&adjacency, n) {
         let v = v as usize;
         let (pred, ctx) = prediction(v, &adjacency, &motion, &skipped);
-        let skip = dec.bit(&mut models.skip[ctx]);
-        let residual: [i64; 3] = if skip { [0; 3] } else { std::array::from_fn(|k| dec.int(&mut models.residual[k]) as i64) };
-        if dec.exhausted() {
+        // The encoder's residual; the decoder's placeholder, which its side ignores.
+        let residual: [i64; 3] = match current {
+            Some(c) => std::array::from_fn(|k| c[v][k] as i64 - reference[v][k] as i64 - pred[k]),
+            None => [0; 3],
+        };
+        let skip = side.bit(&mut models.skip[ctx], residual == [0; 3]);
+        let residual: [i64; 3] = if skip {
+            [0; 3]
+        } else {
+            std::array::from_fn(|k| side.int(&mut models.residual[k], residual[k] as i32) as i64)
+        };
+        if side.failed() {
             return None;
         }
         let actual: [i64; 3] = std::array::from_fn(|k| pred[k] + residual[k]);
@@ -123,13 +127,12 @@ pub fn decode_motion(dec: &mut ec::Decoder, reference: &[[u32; 3]], faces: &[[u3
             if !(0..=max).contains(&p) {
                 return None;
             }
-            current[v][k] = p as u32;
+            out[v][k] = p as u32;
         }
         motion[v] = Some(actual);
         skipped[v] = skip;
     }
-    dec.finish().ok()?;
-    Some(current)
+    Some(out)
 }
 
 #[cfg(test)]
