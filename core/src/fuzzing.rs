@@ -210,7 +210,7 @@ mod tests {
     /// Every target accepts its seeds, their truncations and single bit flips.
     #[test]
     fn targets_run_on_their_seeds_and_mutations() {
-        let targets: [(&str, fn(&[u8])); 5] = [("stream", stream), ("base", base), ("motion", motion), ("uv", uv), ("coef", coef)];
+        let targets = [("stream", stream as fn(&[u8])), ("base", base), ("motion", motion), ("uv", uv), ("coef", coef)];
         for (name, seed) in seeds() {
             let target = targets.iter().find(|t| t.0 == name).expect("a target per seed").1;
             target(&seed);

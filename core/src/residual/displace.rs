@@ -404,8 +404,12 @@ fn target_samples(target: &Bvh) -> Vec<[f64; 3]> {
 /// carries agree. Summed in sample order: deterministic. `surface` indexes the fitted mesh
 /// (`faces` at the moved positions); `hints` (one per sample) seed the searches and are
 /// replaced by this round's nearest faces.
+/// Where an input sample's gap to the fitted surface lands: the nearest fitted face, the gap
+/// from the closest point to the sample, and the barycentric weights of that point.
+type Foot = (u32, [f64; 3], [f64; 3]);
+
 fn reverse_pulls(surface: &Bvh, faces: &[[u32; 3]], frames: &[Frame], samples: &[[f64; 3]], hints: &mut [u32]) -> Vec<Option<f64>> {
-    let feet: Vec<Option<(u32, [f64; 3], [f64; 3])>> = samples
+    let feet: Vec<Option<Foot>> = samples
         .par_iter()
         .zip(hints.par_iter_mut())
         .map(|(&q, hint)| {

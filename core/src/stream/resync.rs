@@ -186,7 +186,7 @@ fn number_frames(items: &[Item], frame_count: usize) -> Vec<FrameSlot> {
         }
     }
     let lost = frame_count - head.len() - tail.len();
-    head.extend(std::iter::repeat_n(FrameSlot::Damaged(damage), lost));
+    head.extend(std::iter::repeat(FrameSlot::Damaged(damage)).take(lost));
     head.extend(tail);
     head
 }
