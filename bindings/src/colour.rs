@@ -12,10 +12,10 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use dynmesh::mesh::Mesh;
-use dynmesh::metrics;
-use dynmesh::sampling::SamplingGrid;
-use dynmesh::render::View;
+use dynmesh::geom::mesh::Mesh;
+use dynmesh::eval::metrics;
+use dynmesh::eval::sampling::SamplingGrid;
+use dynmesh::eval::render::View;
 use dynmesh::texture::{self, Texture, UvMesh};
 
 use crate::{faces_of, positions_of};
@@ -161,7 +161,7 @@ fn render<'py>(
     let texture = texture.as_ref().map(texture_of).transpose()?;
     let view = View { azimuth_deg: azimuth, elevation_deg: elevation };
     let image =
-        py.allow_threads(|| dynmesh::render::render(&mesh, texture.as_ref(), width, height, view));
+        py.allow_threads(|| dynmesh::eval::render::render(&mesh, texture.as_ref(), width, height, view));
     let flat = image.rgb.into_flattened();
     Ok(Array3::from_shape_vec((height, width, 3), flat).expect("shape").into_pyarray(py))
 }

@@ -26,12 +26,12 @@ use pyo3::types::PyTuple;
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 
-use dynmesh::bitstream::FrameType;
+use dynmesh::stream::bitstream::FrameType;
 use dynmesh::decoder::Decoder;
 use dynmesh::error::DecodeError as CoreDecodeError;
-use dynmesh::mesh::Mesh;
+use dynmesh::geom::mesh::Mesh;
 
-use crate::meshio::{push_obj_faces, push_ply_rows, push_rows, text_blocks};
+use crate::meshio::{push_obj_faces, push_ply_rows, push_rows, text_blocks, PlyBody};
 
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(decode_to_files, m)?)
@@ -188,7 +188,8 @@ fn file_chunks(path: &Path, mesh: &Mesh, format: Format) -> Result<Vec<Vec<u8>>,
         }
         Format::Ply => {
             let mut chunks = vec![ply_header(nv, nf).into_bytes()];
-            chunks.extend(text_blocks(nv + nf, |lo, hi, out| push_ply_rows(out, positions, 3, faces, None, false, lo, hi)));
+            let body = PlyBody { vertex: positions, width: 3, faces, texcoord: None, ascii: false };
+            chunks.extend(text_blocks(nv + nf, |lo, hi, out| push_ply_rows(out, &body, lo, hi)));
             chunks
         }
     })

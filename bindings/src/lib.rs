@@ -17,14 +17,14 @@ use pyo3::exceptions::{PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
-use dynmesh::bitstream::{FrameType, SequenceHeader};
+use dynmesh::stream::bitstream::{FrameType, SequenceHeader};
 use dynmesh::decoder;
 use dynmesh::encoder::{EncoderConfig, FrameStats, InterMode, LiftingChoice, SequenceEncoder};
 use dynmesh::error::DecodeError as CoreDecodeError;
-use dynmesh::mesh::Mesh;
-use dynmesh::metrics;
-use dynmesh::sampling;
-use dynmesh::subdivide::SchemeChoice;
+use dynmesh::geom::mesh::Mesh;
+use dynmesh::eval::metrics;
+use dynmesh::eval::sampling;
+use dynmesh::residual::subdivide::SchemeChoice;
 
 create_exception!(_core, DecodeError, PyValueError, "A stream that cannot be decoded; args are (message, frame or None, byte offset).");
 
@@ -185,7 +185,7 @@ impl Encoder {
 
     /// The serialized sequence header.
     fn header_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        PyBytes::new(py, &dynmesh::bitstream::write_header(self.inner.header()))
+        PyBytes::new(py, &dynmesh::stream::bitstream::write_header(self.inner.header()))
     }
 
     /// Encodes the next frame; returns (unit bytes, stats dict, (positions, faces) of the
@@ -287,7 +287,7 @@ impl Decoder {
 /// A texture unit carrying `payload`, to be placed right after its frame's unit.
 #[pyfunction]
 fn texture_unit<'py>(py: Python<'py>, payload: &[u8]) -> Bound<'py, PyBytes> {
-    PyBytes::new(py, &dynmesh::bitstream::write_texture_unit(payload))
+    PyBytes::new(py, &dynmesh::stream::bitstream::write_texture_unit(payload))
 }
 
 /// D1/D2 distortion between a reference and a decoded mesh, sampled on the grid over

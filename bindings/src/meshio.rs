@@ -443,20 +443,22 @@ pub(crate) fn format_obj_faces<'py>(py: Python<'py>, faces: PyReadonlyArray2<'py
     format_blocks(py, faces.len() / 3, |lo, hi, out| push_obj_faces(out, &faces, uv_faces.as_deref(), lo, hi))
 }
 
+/// A PLY body to write: vertex rows of `width` doubles, triangles, and per face its `texcoord`
+/// (6 doubles) when given, in ASCII or binary.
+pub(crate) struct PlyBody<'a, I> {
+    pub vertex: &'a [f64],
+    pub width: usize,
+    pub faces: &'a [I],
+    pub texcoord: Option<&'a [f64]>,
+    pub ascii: bool,
+}
+
 /// Rows `lo..hi` of a PLY body: rows below the vertex count are vertex rows of `width`
 /// doubles, the others faces as `list uchar int`, each followed by its `texcoord` (6
 /// doubles) when given. ASCII rows use Python's float repr; binary is little endian. Face
 /// indices must fit an i32.
-pub(crate) fn push_ply_rows<I: Copy + Into<i64>>(
-    out: &mut Vec<u8>,
-    vertex: &[f64],
-    width: usize,
-    faces: &[I],
-    texcoord: Option<&[f64]>,
-    ascii: bool,
-    lo: usize,
-    hi: usize,
-) {
+pub(crate) fn push_ply_rows<I: Copy + Into<i64>>(out: &mut Vec<u8>, body: &PlyBody<'_, I>, lo: usize, hi: usize) {
+    let PlyBody { vertex, width, faces, texcoord, ascii } = *body;
     let rows = vertex.len().checked_div(width).unwrap_or(0);
     let (mut fbuf, mut ibuf) = (ryu::Buffer::new(), itoa::Buffer::new());
     for r in lo..hi {
@@ -526,7 +528,8 @@ pub(crate) fn ply_body<'py>(
     }
     let rows = vertex.len().checked_div(width).unwrap_or(0);
     // Rows 0..rows are vertices, rows..rows + nf faces.
-    format_blocks(py, rows + faces.len() / 3, |lo, hi, out| push_ply_rows(out, &vertex, width, &faces, texcoord.as_deref(), ascii, lo, hi))
+    let body = PlyBody { vertex: &vertex, width, faces: &faces, texcoord: texcoord.as_deref(), ascii };
+    format_blocks(py, rows + faces.len() / 3, |lo, hi, out| push_ply_rows(out, &body, lo, hi))
 }
 
 #[cfg(test)]

@@ -54,9 +54,9 @@ fn transfer_texture<'py>(
     let source = valid_uv_mesh(&source_positions, &source_faces, &source_uv, &source_uv_faces).map_err(named("source"))?;
     let texture = texture_of(&source_texture).map_err(named("source texture"))?;
     let (image, covered) = py.allow_threads(|| {
-        let mut t = dynmesh::transfer::transfer_texture(&target, &source, &texture, width, height);
+        let mut t = dynmesh::texture::transfer::transfer_texture(&target, &source, &texture, width, height);
         if pad {
-            dynmesh::pad::pad(&mut t.texture, &t.covered);
+            dynmesh::texture::pad::pad(&mut t.texture, &t.covered);
         }
         let covered = t.covered.iter().filter(|&&c| c).count() as f64 / t.covered.len() as f64;
         (t.texture, covered)

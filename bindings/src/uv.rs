@@ -10,9 +10,9 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
-use dynmesh::bitstream::MAX_SUBDIV;
-use dynmesh::subdivide;
-use dynmesh::uvcoder::{self, MAX_UV_BITS};
+use dynmesh::stream::bitstream::MAX_SUBDIV;
+use dynmesh::residual::subdivide;
+use dynmesh::texture::uvcoder::{self, MAX_UV_BITS};
 
 use crate::{faces_of, positions_of};
 

@@ -10,19 +10,19 @@
 //! beyond K are not read (they come last in the block) and count as zero, and the frame is
 //! reconstructed on the level-K mesh. At K = all iterations nothing changes.
 
-use crate::basecoder;
-use crate::bitstream::{self, FrameType, Reader, SequenceHeader, Unit};
-use crate::coefcoder;
-use crate::displace;
-use crate::ec;
+use crate::base::coder as basecoder;
+use crate::stream::bitstream::{self, FrameType, Reader, SequenceHeader, Unit};
+use crate::residual::coefcoder;
+use crate::residual::displace;
+use crate::stream::ec;
 use crate::error::DecodeError;
-use crate::grid::Grid;
-use crate::mesh::Mesh;
-use crate::motion;
-use crate::quantize;
-use crate::resync::{self, Damage, FrameSlot, TextureSlot};
-use crate::subdivide::{subdivide, Subdivision};
-use crate::transform;
+use crate::geom::grid::Grid;
+use crate::geom::mesh::Mesh;
+use crate::inter::motion;
+use crate::residual::quantize;
+use crate::stream::resync::{self, Damage, FrameSlot, TextureSlot};
+use crate::residual::subdivide::{subdivide, Subdivision};
+use crate::residual::transform;
 
 /// Largest subdivided mesh a stream may ask for; a bound on what a hostile stream can make
 /// the decoder allocate. A decode to OBJ peaks at about 190 bytes per output face (1.96M

@@ -5,26 +5,26 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::anchor::{self, AnchorParams, AnchorStages, ReferenceBase, Rigid};
-use crate::basecoder;
-use crate::bitstream::{self, FrameType, SequenceHeader, Writer};
-use crate::bvh::Bvh;
-use crate::coefcoder;
-use crate::decimate::decimate;
+use crate::inter::anchor::{self, AnchorParams, AnchorStages, ReferenceBase, Rigid};
+use crate::base::coder as basecoder;
+use crate::stream::bitstream::{self, FrameType, SequenceHeader, Writer};
+use crate::geom::bvh::Bvh;
+use crate::residual::coefcoder;
+use crate::base::decimate::decimate;
 use crate::decoder;
-use crate::displace;
-use crate::ec;
+use crate::residual::displace;
+use crate::stream::ec;
 use crate::error::InputError;
-use crate::grid::{Grid, BITS_RANGE};
-use crate::limits;
-use crate::mesh::{cross, norm, sub, Mesh};
-use crate::motion;
-use crate::quantize::{self, AqParams};
-use crate::refit::refit_base;
-use crate::subdivide::{SchemeChoice, Subdivision};
-use crate::tracking::{self, Bindings};
-use crate::transform;
-use crate::weld::weld;
+use crate::geom::grid::{Grid, BITS_RANGE};
+use crate::geom::limits;
+use crate::geom::mesh::{cross, norm, sub, Mesh};
+use crate::inter::motion;
+use crate::residual::quantize::{self, AqParams};
+use crate::base::refit::refit_base;
+use crate::residual::subdivide::{SchemeChoice, Subdivision};
+use crate::inter::tracking::{self, Bindings};
+use crate::residual::transform;
+use crate::geom::weld::weld;
 
 /// How predicted frames find their base mesh (the paper's ablation switches).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -8,14 +8,14 @@
 //! the rest of the input is the coded block as the stream would carry it. [`seeds`] gives a
 //! valid input for every target, made by the encoders, to start a campaign from.
 
-use crate::basecoder;
-use crate::bitstream;
-use crate::coefcoder;
+use crate::base::coder;
+use crate::stream::bitstream;
+use crate::residual::coefcoder;
 use crate::decoder::{self, Decoder};
-use crate::ec;
-use crate::motion;
-use crate::subdivide::{subdivide, Scheme};
-use crate::uvcoder;
+use crate::stream::ec;
+use crate::inter::motion;
+use crate::residual::subdivide::{subdivide, Scheme};
+use crate::texture::uvcoder;
 
 /// Base grid bits of the context meshes.
 const CONTEXT_BITS: u32 = 9;
@@ -82,8 +82,8 @@ fn fix_header_crc(data: &mut [u8]) -> Result<(bitstream::SequenceHeader, usize),
 /// The base mesh decoder; the first byte picks the bit depth (1 to 30).
 pub fn base(input: &[u8]) {
     let Some((&b, data)) = input.split_first() else { return };
-    let bits = 1 + b as u32 % basecoder::MAX_BITS;
-    if let Ok((positions, faces)) = basecoder::decode_base(data, bits) {
+    let bits = 1 + b as u32 % coder::MAX_BITS;
+    if let Ok((positions, faces)) = coder::decode_base(data, bits) {
         assert!(faces.len() <= 4 * data.len().max(1), "more faces than the byte bound allows");
         assert!(faces.iter().flatten().all(|&v| (v as usize) < positions.len()), "face index out of range");
         assert!(positions.iter().flatten().all(|&c| (c as u64) < 1 << bits), "position off the grid");
@@ -131,7 +131,7 @@ pub fn coef(input: &[u8]) {
     }
 }
 
-fn coefficient_context(b: u8) -> (usize, crate::subdivide::Subdivision) {
+fn coefficient_context(b: u8) -> (usize, crate::residual::subdivide::Subdivision) {
     let (positions, faces) = context_mesh(b);
     let world: Vec<[f64; 3]> = positions.iter().map(|p| p.map(f64::from)).collect();
     let iterations = (b >> 5 & 3) as usize;
@@ -142,14 +142,14 @@ fn coefficient_context(b: u8) -> (usize, crate::subdivide::Subdivision) {
 /// One of four small meshes on the 9-bit base grid, by `b % 4`: an octahedron, the same
 /// refined once, two tetrahedra sharing a vertex (non-manifold), and an open strip with a
 /// face repeated and one reversed (inconsistent orientation).
-pub fn context_mesh(b: u8) -> basecoder::GridMesh {
+pub fn context_mesh(b: u8) -> coder::GridMesh {
     let octahedron_p = vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
     let octahedron_f = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
     let (p, f): (Vec<[f64; 3]>, Vec<[u32; 3]>) = match b % 4 {
         0 => (octahedron_p, octahedron_f),
         1 => {
             let s = subdivide(&octahedron_p, &octahedron_f, &[Scheme::Midpoint]);
-            (s.positions.iter().map(|&q| crate::mesh::normalize(q)).collect(), s.faces)
+            (s.positions.iter().map(|&q| crate::geom::mesh::normalize(q)).collect(), s.faces)
         }
         2 => (
             vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [-1.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, -1.0]],
@@ -170,7 +170,7 @@ pub fn seeds() -> Vec<(&'static str, Vec<u8>)> {
     let mut out = vec![("stream", stream_seed())];
     for b in 0..4u8 {
         let (p, f) = context_mesh(b);
-        out.push(("base", [&[CONTEXT_BITS as u8 - 1][..], &basecoder::encode_base(&p, &f, CONTEXT_BITS)].concat()));
+        out.push(("base", [&[CONTEXT_BITS as u8 - 1][..], &coder::encode_base(&p, &f, CONTEXT_BITS)].concat()));
         let moved: Vec<[u32; 3]> = p.iter().map(|q| [q[0].saturating_sub(3), q[1].saturating_sub(2), q[2]]).collect();
         let mut enc = ec::Encoder::new();
         motion::encode_motion(&mut enc, &p, &moved, &f);
@@ -198,7 +198,7 @@ fn stream_seed() -> Vec<u8> {
     let mut out = vec![1];
     out.extend(bitstream::write_header(enc.header()));
     for m in [world, moved] {
-        out.extend(enc.encode(&crate::mesh::Mesh::new(m, f.clone())).expect("a valid mesh").unit);
+        out.extend(enc.encode(&crate::geom::mesh::Mesh::new(m, f.clone())).expect("a valid mesh").unit);
     }
     out
 }
@@ -210,7 +210,7 @@ mod tests {
     /// Every target accepts its seeds, their truncations and single bit flips.
     #[test]
     fn targets_run_on_their_seeds_and_mutations() {
-        let targets: [(&str, fn(&[u8])); 5] = [("stream", stream), ("base", base), ("motion", motion), ("uv", uv), ("coef", coef)];
+        let targets = [("stream", stream as fn(&[u8])), ("base", base), ("motion", motion), ("uv", uv), ("coef", coef)];
         for (name, seed) in seeds() {
             let target = targets.iter().find(|t| t.0 == name).expect("a target per seed").1;
             target(&seed);
@@ -235,7 +235,7 @@ mod tests {
         for (name, s) in &seeds[1..] {
             let (p, f) = context_mesh(s[0]);
             match *name {
-                "base" => assert!(!basecoder::decode_base(&s[1..], CONTEXT_BITS).unwrap().1.is_empty()),
+                "base" => assert!(!coder::decode_base(&s[1..], CONTEXT_BITS).unwrap().1.is_empty()),
                 "motion" => assert!(motion::decode_motion(&mut ec::Decoder::new(&s[1..]), &p, &f, CONTEXT_BITS).is_some()),
                 "uv" => assert!(uvcoder::decode_uv(&s[2..], &f, p.len(), CONTEXT_BITS).is_ok()),
                 _ => {

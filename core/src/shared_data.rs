@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::mesh::Mesh;
+use crate::geom::mesh::Mesh;
 
 /// `<repository>/../shared/data`.
 pub fn dir() -> PathBuf {

@@ -7,8 +7,8 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 use dynmesh::decoder::Decoder;
-use dynmesh::mesh::Mesh;
-use dynmesh::quantize::lod_scales;
+use dynmesh::geom::mesh::Mesh;
+use dynmesh::residual::quantize::lod_scales;
 use sha2::{Digest, Sha256};
 
 fn vectors() -> PathBuf {

@@ -1,0 +1,312 @@
+//! Rigid alignment in front of the anchor's matching (ours; not a stage of the paper): each
+//! connected part of the reference base gets the rigid motion that brings its vertices
+//! closest to the input surface, by iterative closest points.
+//!
+//! Nearest-neighbour matching and neighbour-mean motion describe small, smooth motion. A part
+//! that turns by more than the spacing of its features (a gear by more than a tooth, a body
+//! turning on the spot) is matched vertex by vertex to the wrong features, and the anchor
+//! tears. A rigid motion per part moves the whole part consistently first, so that the
+//! matching only has to follow what is left. Each part starts from no motion and from the
+//! motion it had in the previous frame (a constant-velocity prediction, when the reference
+//! frame was itself predicted), and keeps whichever result lies closer to the input; a
+//! part whose fit does not lie clearly closer than not moving at all stays where it is.
+
+use nalgebra::{Matrix3, Vector3};
+
+use crate::geom::bvh::Bvh;
+use crate::geom::mesh::{add, norm, sub, Mesh};
+
+/// Closest-point rounds per start, at most: a part turning along itself (a rim, a disc)
+/// creeps towards its fit, a few grid units a round.
+const ROUNDS: usize = 24;
+/// Rounds stop when no point of the part moves more than this share of the part's size from
+/// one round to the next.
+const SETTLED: f64 = 1e-5;
+/// The share of pairs, nearest first, that a round's fit uses: where the input's topology
+/// changed (an arm that left the body) the reference has no counterpart and would pull the
+/// part off. Not a multiple of the median: a turning disc or rim slides along itself, so
+/// most pairs are at distance zero and the few that see the turn (the flanks of its teeth)
+/// are the ones that count.
+const KEEP: f64 = 0.9;
+/// Parts with fewer vertices keep no motion: three points do not determine a rotation well.
+const MIN_PART: usize = 6;
+/// A fit is kept only when it brings the part at least this much closer (trimmed cost
+/// against no motion): a body whose limbs move apart is not moved rigidly, which on the
+/// capture sequences cost bits, while a part that turns as a whole is.
+const GAIN: f64 = 0.5;
+
+/// A point and the point it should move to.
+pub type Pair = ([f64; 3], [f64; 3]);
+
+/// A rotation then a translation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rigid {
+    pub rotation: [[f64; 3]; 3],
+    pub translation: [f64; 3],
+}
+
+impl Rigid {
+    pub const IDENTITY: Self = Self { rotation: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]], translation: [0.0; 3] };
+
+    pub fn apply(&self, p: [f64; 3]) -> [f64; 3] {
+        add(self.rotate(p), self.translation)
+    }
+
+    /// The rotation alone (for directions).
+    pub fn rotate(&self, p: [f64; 3]) -> [f64; 3] {
+        let r = &self.rotation;
+        std::array::from_fn(|i| r[i][0] * p[0] + r[i][1] * p[1] + r[i][2] * p[2])
+    }
+}
+
+/// Per connected part of `reference` (by faces; a vertex that no face uses is a part of its
+/// own), the part index of each vertex, parts numbered in the order of their first vertex.
+pub fn parts(reference: &Mesh) -> Vec<u32> {
+    let n = reference.positions.len();
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut v: usize) -> usize {
+        while parent[v] != v {
+            parent[v] = parent[parent[v]];
+            v = parent[v];
+        }
+        v
+    }
+    for f in &reference.faces {
+        for k in 1..3 {
+            let (a, b) = (root(&mut parent, f[0] as usize), root(&mut parent, f[k] as usize));
+            parent[a.max(b)] = a.min(b);
+        }
+    }
+    let mut label = vec![u32::MAX; n];
+    let mut count = 0;
+    for v in 0..n {
+        let r = root(&mut parent, v);
+        if label[r] == u32::MAX {
+            label[r] = count;
+            count += 1;
+        }
+        label[v] = label[r];
+    }
+    label
+}
+
+/// A reference moved part by part.
+pub struct Aligned {
+    pub positions: Vec<[f64; 3]>,
+    /// The part of each vertex ([`parts`]).
+    pub parts: Vec<u32>,
+    /// The motion of each part.
+    pub motions: Vec<Rigid>,
+}
+
+/// The rigid motion of each part of `reference` onto `input`, tried from no motion and from
+/// `previous[part]` when given (ignored unless it has one motion per part), and the
+/// reference positions moved by them.
+pub fn align_parts(reference: &Mesh, input: &Bvh, previous: Option<&[Rigid]>) -> Aligned {
+    let label = parts(reference);
+    let count = label.iter().map(|&l| l as usize + 1).max().unwrap_or(0);
+    let mut members: Vec<Vec<[f64; 3]>> = vec![Vec::new(); count];
+    for (&l, &p) in label.iter().zip(&reference.positions) {
+        members[l as usize].push(p);
+    }
+    let motions: Vec<Rigid> = members
+        .iter()
+        .enumerate()
+        .map(|(i, points)| {
+            let predicted = previous.filter(|m| m.len() == count).map(|m| m[i]);
+            if points.len() < MIN_PART || input.is_empty() { Rigid::IDENTITY } else { part_motion(points, input, predicted) }
+        })
+        .collect();
+    let positions = label.iter().zip(&reference.positions).map(|(&l, &p)| motions[l as usize].apply(p)).collect();
+    Aligned { positions, parts: label, motions }
+}
+
+/// The best of ICP from no motion and from `predicted`, or no motion if neither lies
+/// [`GAIN`] closer.
+fn part_motion(points: &[[f64; 3]], input: &Bvh, predicted: Option<Rigid>) -> Rigid {
+    let mut best = (trimmed_cost(points, input, &Rigid::IDENTITY) * GAIN, Rigid::IDENTITY);
+    for start in std::iter::once(Rigid::IDENTITY).chain(predicted) {
+        let fitted = icp(points, input, start);
+        let cost = trimmed_cost(points, input, &fitted);
+        if cost < best.0 {
+            best = (cost, fitted);
+        }
+    }
+    best.1
+}
+
+/// Mean squared distance to the surface of the [`KEEP`] share of the moved points nearest
+/// to it: what ICP lowers, measured the same way for every candidate.
+fn trimmed_cost(points: &[[f64; 3]], input: &Bvh, motion: &Rigid) -> f64 {
+    let d2: Vec<f64> = points.iter().map(|&p| input.closest_point(motion.apply(p)).map_or(0.0, |c| c.dist2)).collect();
+    let limit = kept_limit(&d2);
+    let kept: Vec<f64> = d2.into_iter().filter(|&d| d <= limit).collect();
+    kept.iter().sum::<f64>() / kept.len().max(1) as f64
+}
+
+/// The largest of the [`KEEP`] share of smallest values.
+fn kept_limit(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    let k = ((v.len() as f64 * KEEP).ceil() as usize).clamp(1, v.len()) - 1;
+    v.select_nth_unstable_by(k, f64::total_cmp);
+    v[k]
+}
+
+/// Point-to-point iterative closest points from `start`, trimmed to [`KEEP`].
+fn icp(points: &[[f64; 3]], input: &Bvh, start: Rigid) -> Rigid {
+    let mut motion = start;
+    let mut hints = vec![u32::MAX; points.len()];
+    let tolerance = crate::geom::mesh::bounds(points).map_or(0.0, |(lo, hi)| norm(sub(hi, lo))) * SETTLED;
+    for _ in 0..ROUNDS {
+        let pairs: Vec<([f64; 3], [f64; 3], f64)> = points
+            .iter()
+            .zip(hints.iter_mut())
+            .filter_map(|(&p, hint)| {
+                let c = input.closest_point_near(motion.apply(p), *hint)?;
+                *hint = c.triangle;
+                Some((p, c.point, c.dist2))
+            })
+            .collect();
+        if pairs.is_empty() {
+            break;
+        }
+        let limit = kept_limit(&pairs.iter().map(|p| p.2).collect::<Vec<_>>());
+        let kept: Vec<Pair> = pairs.iter().filter(|p| p.2 <= limit).map(|p| (p.0, p.1)).collect();
+        let Some(next) = best_rigid(&kept) else { break };
+        let settled = points.iter().all(|&p| norm(sub(next.apply(p), motion.apply(p))) <= tolerance);
+        motion = next;
+        if settled {
+            break;
+        }
+    }
+    motion
+}
+
+/// The rigid motion taking the first point of each pair closest to the second (least squares,
+/// Kabsch's method; a reflection is turned into the nearest rotation). None for fewer than
+/// three pairs.
+pub fn best_rigid(pairs: &[Pair]) -> Option<Rigid> {
+    if pairs.len() < 3 {
+        return None;
+    }
+    let n = pairs.len() as f64;
+    let centroid = |pick: fn(&Pair) -> [f64; 3]| -> Vector3<f64> {
+        pairs.iter().map(|p| Vector3::from(pick(p))).sum::<Vector3<f64>>() / n
+    };
+    let (cs, ct) = (centroid(|p| p.0), centroid(|p| p.1));
+    let h: Matrix3<f64> = pairs.iter().map(|(s, t)| (Vector3::from(*s) - cs) * (Vector3::from(*t) - ct).transpose()).sum();
+    let svd = h.svd(true, true);
+    let (u, v_t) = (svd.u?, svd.v_t?);
+    let mut d = Matrix3::identity();
+    if (v_t.transpose() * u.transpose()).determinant() < 0.0 {
+        d[(2, 2)] = -1.0;
+    }
+    let r = v_t.transpose() * d * u.transpose();
+    let t = ct - r * cs;
+    Some(Rigid { rotation: std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)])), translation: [t[0], t[1], t[2]] })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn turn_z(angle: f64, t: [f64; 3]) -> Rigid {
+        let (s, c) = angle.sin_cos();
+        Rigid { rotation: [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]], translation: t }
+    }
+
+    /// A closed, bumpy tube around the z axis (radius 2 with `teeth` ridges), so that a turn
+    /// is visible to closest points but repeats every `2 pi / teeth`.
+    fn toothed(teeth: u32, motion: &Rigid) -> Mesh {
+        let (around, along) = (teeth * 6, 4u32);
+        let mut m = Mesh::default();
+        for j in 0..=along {
+            for i in 0..around {
+                let a = i as f64 / around as f64 * std::f64::consts::TAU;
+                let r = 2.0 + 0.4 * ((a * teeth as f64).cos() > 0.5) as u8 as f64;
+                m.positions.push(motion.apply([r * a.cos(), r * a.sin(), j as f64 * 0.5]));
+            }
+        }
+        for j in 0..along {
+            for i in 0..around {
+                let v = |i: u32, j: u32| j * around + i % around;
+                m.faces.push([v(i, j), v(i + 1, j), v(i + 1, j + 1)]);
+                m.faces.push([v(i, j), v(i + 1, j + 1), v(i, j + 1)]);
+            }
+        }
+        m
+    }
+
+    #[test]
+    fn kabsch_recovers_a_rigid_motion() {
+        let m = turn_z(0.7, [1.0, -2.0, 0.5]);
+        let pts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0], [1.0, 1.0, 1.0]];
+        let pairs: Vec<_> = pts.iter().map(|&p| (p, m.apply(p))).collect();
+        let r = best_rigid(&pairs).unwrap();
+        for &p in &pts {
+            let d = sub(r.apply(p), m.apply(p));
+            assert!(d.iter().all(|x| x.abs() < 1e-9), "{d:?}");
+        }
+        assert!(best_rigid(&pairs[..2]).is_none());
+    }
+
+    #[test]
+    fn parts_are_the_connected_pieces_in_order_of_their_first_vertex() {
+        let m = Mesh::new(vec![[0.0; 3]; 7], vec![[3, 4, 5], [0, 1, 2], [2, 1, 6]]);
+        assert_eq!(parts(&m), vec![0, 0, 0, 1, 1, 1, 0]);
+    }
+
+    #[test]
+    fn a_part_is_moved_onto_the_surface_it_moved_to() {
+        let reference = toothed(8, &Rigid::IDENTITY);
+        // A small turn and shift: ICP from no motion finds it.
+        let input = toothed(8, &turn_z(0.05, [0.1, 0.05, 0.0]));
+        let bvh = Bvh::new(&input.positions, &input.faces);
+        let a = align_parts(&reference, &bvh, None);
+        let before = trimmed_cost(&reference.positions, &bvh, &Rigid::IDENTITY);
+        let after = trimmed_cost(&reference.positions, &bvh, &a.motions[0]);
+        assert!(after < before * 0.01, "before {before} after {after}");
+        assert_eq!(a.positions.len(), reference.positions.len());
+    }
+
+    #[test]
+    fn the_previous_motion_finds_a_turn_that_no_motion_does_not() {
+        // An oval body turning by a large angle each frame: from no motion, ICP settles in the
+        // nearer (wrong) alignment; from the previous frame's turn it finds the true one.
+        let oval = |m: &Rigid| {
+            let mut t = toothed(1, &Rigid::IDENTITY);
+            t.positions.iter_mut().for_each(|p| *p = m.apply([p[0] * 2.0, p[1] * 0.6, p[2]]));
+            t
+        };
+        let turn = turn_z(1.2, [0.0; 3]);
+        let (reference, input) = (oval(&Rigid::IDENTITY), oval(&turn));
+        let bvh = Bvh::new(&input.positions, &input.faces);
+        let fits = |previous: Option<&[Rigid]>| {
+            let a = align_parts(&reference, &bvh, previous);
+            trimmed_cost(&reference.positions, &bvh, &a.motions[0])
+        };
+        let (alone, predicted) = (fits(None), fits(Some(&[turn_z(1.15, [0.0; 3])])));
+        assert!(predicted < alone * 0.1 && predicted < 1e-3, "alone {alone} predicted {predicted}");
+    }
+
+    #[test]
+    fn a_turn_that_only_the_teeth_flanks_show_is_found() {
+        // Most points of a turning toothed rim slide along the rim (distance zero); only the
+        // flanks see the turn, and they must not be trimmed away as outliers.
+        let reference = toothed(12, &Rigid::IDENTITY);
+        let input = toothed(12, &turn_z(0.09, [0.0; 3]));
+        let bvh = Bvh::new(&input.positions, &input.faces);
+        let r = align_parts(&reference, &bvh, None).motions[0].rotation;
+        let angle = r[1][0].atan2(r[0][0]);
+        assert!((angle - 0.09).abs() < 0.01, "{angle}");
+    }
+
+    #[test]
+    fn a_still_part_keeps_no_motion() {
+        let m = toothed(8, &Rigid::IDENTITY);
+        let bvh = Bvh::new(&m.positions, &m.faces);
+        for (a, b) in align_parts(&m, &bvh, None).positions.iter().zip(&m.positions) {
+            assert!(sub(*a, *b).iter().all(|x| x.abs() < 1e-9));
+        }
+    }
+}

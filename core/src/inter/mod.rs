@@ -1,0 +1,8 @@
+//! The base mesh of a predicted frame, from its reference frame's base mesh: [`tracking`]
+//! when the input keeps the reference input's connectivity, the coarse-to-fine [`anchor`] when
+//! it does not, then [`motion`], the coding of the base vertices' quantized motion over the
+//! reference connectivity.
+
+pub mod anchor;
+pub mod motion;
+pub mod tracking;
