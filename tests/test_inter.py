@@ -1,6 +1,9 @@
-"""Inter coding of rigid motion: the gears of dynmesh.gears, resampled every frame."""
+"""Inter coding: rigid motion (the gears of dynmesh.gears, resampled every frame) and reference choice."""
+
+import numpy as np
 
 import dynmesh
+import dynmesh.defaults
 from dynmesh.gears import gear_sequence
 
 
@@ -26,3 +29,43 @@ def test_turning_gears_are_predicted_once_their_parts_are_aligned_rigidly():
     assert "".join(f["type"] for f in rigid.frames) == "IPPPPP"
     assert len(rigid.data) < 0.5 * len(intra.data)
     assert d1_rigid > d1_intra - 1.5
+
+
+def _warped(frames):
+    from dynmesh.synth import synth_sequence
+
+    m = synth_sequence(frames=40, resolution=14)[0]
+    out = []
+    for f in range(frames):
+        p = m.positions.copy()
+        p[:, 0] += 0.08 * f * np.sin(2.0 * p[:, 1])
+        out.append(dynmesh.Mesh(p, m.faces.copy()))
+    return out
+
+
+def test_reference_choice_refers_back_to_a_repeated_frame_and_decodes_bit_exactly():
+    a, b, c = _warped(3)
+    frames = [a, b, c, b, c]
+    r = dynmesh.encode_frames(frames, keep_reconstructions=True, references=3, rd_slope=100.0, qp=30)
+    distances = [f["reference_distance"] for f in r.frames]
+    assert distances[0] == 0 and distances[1] == 1
+    assert distances[3] == 2, distances  # frame 3 repeats frame 1
+    decoded = list(dynmesh.decode(r.data))
+    for rec, dec in zip(r.reconstructions, decoded):
+        assert np.array_equal(rec.positions, dec.positions) and np.array_equal(rec.faces, dec.faces)
+    # The default tries only the previous frame.
+    assert [f["reference_distance"] for f in dynmesh.encode_frames(frames, rd_slope=100.0, qp=30).frames][1:] == [1] * 4
+
+
+def test_intra_reference_can_refer_to_the_groups_intra_frame():
+    a, b, c = _warped(3)
+    r = dynmesh.encode_frames([a, b, c, a], intra_reference=True, rd_slope=100.0, qp=30)
+    assert [f["reference_distance"] for f in r.frames] == [0, 1, 1, 3]
+
+
+def test_references_out_of_range_is_a_clear_error():
+    import pytest
+
+    for bad in (0, dynmesh.defaults.MAX_REFERENCES + 1):
+        with pytest.raises(ValueError, match="references"):
+            dynmesh.encode_frames(_warped(2), references=bad)

@@ -85,6 +85,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDic
     let d = PyDict::new(py);
     d.set_item("type", frame_type_name(s.frame_type))?;
     d.set_item("same_topology", s.same_topology)?;
+    d.set_item("reference_distance", s.reference_distance)?;
     d.set_item("rejected_bytes", s.rejected_bytes)?;
     d.set_item("anchor_seconds", s.anchor_seconds)?;
     d.set_item("bytes", s.bytes)?;
@@ -144,6 +145,8 @@ fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
             "refit" => c.refit = value.extract()?,
             "fold_repair" => c.fold_repair = value.extract()?,
             "rigid_align" => c.rigid_align = value.extract()?,
+            "references" => c.references = value.extract()?,
+            "intra_reference" => c.intra_reference = value.extract()?,
             "lifting" => {
                 let name: String = value.extract()?;
                 c.lifting = LiftingChoice::from_name(&name).ok_or_else(|| {
@@ -371,6 +374,8 @@ fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     d.set_item("refit", c.refit)?;
     d.set_item("fold_repair", c.fold_repair)?;
     d.set_item("rigid_align", c.rigid_align)?;
+    d.set_item("references", c.references)?;
+    d.set_item("intra_reference", c.intra_reference)?;
     d.set_item("lifting", c.lifting.name())?;
     let aq = c.aq.unwrap_or_default();
     d.set_item("aq", c.aq.is_some())?;
@@ -393,5 +398,6 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     meshio::register(m)?;
     decode_files::register(m)?;
     m.add("DecodeError", m.py().get_type::<DecodeError>())?;
+    m.add("MAX_REFERENCES", dynmesh::encoder::MAX_REFERENCES)?;
     Ok(())
 }

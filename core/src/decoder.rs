@@ -3,7 +3,8 @@
 //! [`reconstruct`] is the single place where quantized coefficients become positions; the
 //! encoder calls it too, which is what makes the two agree bit for bit. Predicted frames
 //! take their base mesh from the frame they name, so [`Decoder`] walks back to the intra
-//! frame that starts the chain (seeking) and keeps the last base mesh it made.
+//! frame that starts the chain (seeking) and keeps the states of the frames it decoded last
+//! ([`StateCache`]), which later frames refer to.
 //!
 //! Level-of-detail decoding ([`Decoder::set_lod`]) stops after K of the stream's
 //! subdivision iterations: each frame is subdivided K times, the coefficients of the levels
@@ -77,16 +78,52 @@ struct State {
     coefficients: Vec<i32>,
 }
 
+/// The states of recently decoded frames, which later predicted frames refer to: the last
+/// [`CACHED_STATES`] decoded and the latest intra frame decoded. An encoder that chooses its
+/// references among the last `CACHED_STATES` frames and the latest intra frame (as ours
+/// does) thereby costs one frame's work per frame when decoded in order.
+#[derive(Clone, Default)]
+struct StateCache {
+    /// Oldest first; the last entry is the frame decoded last.
+    recent: Vec<(u32, State)>,
+    intra: Option<(u32, State)>,
+}
+
+/// Decoded frames whose states the decoder keeps besides the latest intra frame's.
+pub const CACHED_STATES: usize = 8;
+
+impl StateCache {
+    fn get(&self, frame: u32) -> Option<&State> {
+        let recent = self.recent.iter().rev().find(|(f, _)| *f == frame);
+        recent.or(self.intra.as_ref().filter(|(f, _)| *f == frame)).map(|(_, s)| s)
+    }
+
+    fn last(&self) -> Option<&(u32, State)> {
+        self.recent.last()
+    }
+
+    fn insert(&mut self, frame: u32, state: State, intra: bool) {
+        self.recent.retain(|(f, _)| *f != frame);
+        if intra {
+            self.intra = Some((frame, state.clone()));
+        }
+        self.recent.push((frame, state));
+        if self.recent.len() > CACHED_STATES {
+            self.recent.remove(0);
+        }
+    }
+}
+
 /// A checked stream whose frames can be decoded in any order. Predicted frames are decoded
-/// from the intra frame before them; the last decoded frame's state is kept, so decoding
-/// in order costs one frame's work per frame. A clone decodes on its own (threads decoding
-/// independent frames each take one).
+/// from the intra frame before them, or from the nearest state on their chain that the
+/// [`StateCache`] holds, so decoding in order costs one frame's work per frame. A clone
+/// decodes on its own (threads decoding independent frames each take one).
 #[derive(Clone)]
 pub struct Decoder {
     data: Vec<u8>,
     header: SequenceHeader,
     slots: Vec<FrameSlot>,
-    last: Option<(u32, State)>,
+    cache: StateCache,
     /// Subdivision iterations decoded (at most the stream's).
     lod: u32,
 }
@@ -107,7 +144,7 @@ impl Decoder {
             })
             .collect();
         let lod = header.subdiv_iterations();
-        Ok(Self { header, slots, data, last: None, lod })
+        Ok(Self { header, slots, data, cache: StateCache::default(), lod })
     }
 
     /// Opens a stream whose frame units may be damaged (see [`resync`]): only the sequence
@@ -118,7 +155,7 @@ impl Decoder {
         bitstream::check_frame_count(&data, start, header.frame_count)?;
         let slots = resync::scan_units(&data, start, header.frame_count);
         let lod = header.subdiv_iterations();
-        Ok(Self { header, slots, data, last: None, lod })
+        Ok(Self { header, slots, data, cache: StateCache::default(), lod })
     }
 
     /// The damaged frame units, by frame: (frame, where the damage is, why).
@@ -128,7 +165,7 @@ impl Decoder {
     }
 
     /// Decode only `lod` subdivision iterations from now on (0 = the base mesh with its
-    /// displacements; the stream's iteration count = full detail). Forgets the cached frame,
+    /// displacements; the stream's iteration count = full detail). Forgets the cached frames,
     /// whose coefficients were decoded for another level. Errors if `lod` exceeds the
     /// stream's iterations.
     pub fn set_lod(&mut self, lod: u32) -> Result<(), String> {
@@ -137,7 +174,7 @@ impl Decoder {
             return Err(format!("level of detail {lod} out of range (the stream has {most} subdivision iterations)"));
         }
         self.lod = lod;
-        self.last = None;
+        self.cache = StateCache::default();
         Ok(())
     }
 
@@ -180,10 +217,11 @@ impl Decoder {
 
     /// [`Decoder::decode_frame`], its errors naming the frame of the chain that failed.
     fn decode_chain(&mut self, index: u32) -> Result<Mesh, DecodeError> {
+        // Back from `index` to the first frame that is cached or intra, then forward again.
         let mut chain = vec![index];
         loop {
             let f = *chain.last().unwrap();
-            if chain.len() > 1 && self.last.as_ref().is_some_and(|(i, _)| *i == f) {
+            if chain.len() > 1 && self.cache.get(f).is_some() {
                 break;
             }
             let unit = self.unit(f)?;
@@ -192,17 +230,18 @@ impl Decoder {
             }
             chain.push(f - read_payload(&unit, f)?.reference_distance);
         }
-        let mut reference: Option<State> = None;
-        for &f in chain[1..].iter().rev() {
-            reference = Some(match (reference.take(), &self.last) {
-                (None, Some((i, cached))) if *i == f => cached.clone(),
-                (r, _) => self.decode_state(f, r.as_ref())?.0,
-            });
+        for k in (1..chain.len()).rev() {
+            if self.cache.get(chain[k]).is_none() {
+                let (state, _, _) = self.decode_state(chain[k], chain.get(k + 1).and_then(|&r| self.cache.get(r)))?;
+                let intra = self.unit(chain[k])?.frame_type == FrameType::Intra;
+                self.cache.insert(chain[k], state, intra);
+            }
         }
-        let (state, sub, qp) = self.decode_state(index, reference.as_ref())?;
+        let (state, sub, qp) = self.decode_state(index, chain.get(1).and_then(|&r| self.cache.get(r)))?;
         let frames = displace::local_frames(&sub.positions, &sub.faces);
         let mesh = reconstruct(&self.header, &sub, &frames, &state.coefficients, qp);
-        self.last = Some((index, state));
+        let intra = self.unit(index)?.frame_type == FrameType::Intra;
+        self.cache.insert(index, state, intra);
         Ok(mesh)
     }
 
@@ -222,7 +261,7 @@ impl Decoder {
     /// [`base_in_world_units`] gives them, and faces) of the frame decoded last: the texture
     /// atlas of an intra frame is coded on it. None before the first decode.
     pub fn last_base(&self) -> Option<(u32, Mesh)> {
-        self.last.as_ref().map(|(i, s)| (*i, Mesh::new(base_in_world_units(&self.header, &s.positions), s.faces.clone())))
+        self.cache.last().map(|(i, s)| (*i, Mesh::new(base_in_world_units(&self.header, &s.positions), s.faces.clone())))
     }
 
     fn slot(&self, index: u32) -> Result<&FrameSlot, DecodeError> {

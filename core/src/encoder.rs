@@ -133,6 +133,11 @@ pub struct EncoderConfig {
     /// Move each part of the reference base rigidly onto the input before the anchor's
     /// matching (`anchor::rigid`; not a stage of the paper).
     pub rigid_align: bool,
+    /// Predicted frames try the last `references` coded frames of their group as reference
+    /// (1 = the previous frame only) and keep the best by rate and distortion.
+    pub references: u32,
+    /// Predicted frames also try the group's latest intra frame as reference.
+    pub intra_reference: bool,
 }
 
 impl Default for EncoderConfig {
@@ -153,6 +158,8 @@ impl Default for EncoderConfig {
             lifting: LiftingChoice::PerValence,
             fold_repair: true,
             rigid_align: true,
+            references: 1,
+            intra_reference: false,
         }
     }
 }
@@ -185,6 +192,9 @@ impl EncoderConfig {
                 return err(format!("adaptive quantization needs alpha > 0, h > 0 and |delta| < 1, got {aq:?}"));
             }
         }
+        if !(1..=MAX_REFERENCES).contains(&self.references) {
+            return err(format!("references {} out of range 1..={MAX_REFERENCES}", self.references));
+        }
         if !(self.rd_slope_db.is_finite() && self.rd_slope_db >= 0.0) {
             return err(format!("rd slope {} must be finite and non-negative", self.rd_slope_db));
         }
@@ -209,6 +219,10 @@ impl EncoderConfig {
         }
     }
 }
+
+/// The most recent frames a predicted frame may try as its reference: as many as the
+/// decoder keeps, so that decoding in order never decodes a frame twice.
+pub const MAX_REFERENCES: u32 = decoder::CACHED_STATES as u32;
 
 /// The base mesh size that suits displacements quantized with `qp`: coarse displacements
 /// (high QP) go with a small base mesh, fine ones pay for a larger base mesh that follows
@@ -235,6 +249,8 @@ pub struct EncodedFrame {
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct FrameStats {
     pub frame_type: Option<FrameType>,
+    /// Frames back to the reference of a predicted frame; 0 for intra.
+    pub reference_distance: u32,
     pub bytes: usize,
     /// Bytes of the base mesh (intra) or of its motion (predicted).
     pub base_bytes: usize,
@@ -276,6 +292,17 @@ enum Motion {
     Anchor(Option<Vec<Rigid>>),
 }
 
+/// A candidate with what the decision needs and the next frames reuse.
+struct Chosen {
+    candidate: Candidate,
+    /// Estimated distortion (see `SequenceEncoder::distortion`).
+    distortion: f64,
+    /// Frames back to the reference; 0 for intra.
+    reference_distance: u32,
+    /// How the reference's base was moved onto this frame (predicted frames).
+    motion: Option<Motion>,
+}
+
 /// One way of coding the current frame.
 struct Candidate {
     frame_type: FrameType,
@@ -288,14 +315,23 @@ struct Candidate {
     reconstruction: Mesh,
 }
 
-/// Encodes the frames of one sequence in order, predicting from the previous frame.
+/// Encodes the frames of one sequence in order, predicting from earlier frames of the group.
 pub struct SequenceEncoder {
     header: SequenceHeader,
     config: EncoderConfig,
     frame: u32,
-    reference: Option<Reference>,
+    /// The coded frames of the current group a predicted frame may refer to, oldest first:
+    /// the last `config.references` frames and the latest intra frame.
+    references: Vec<Stored>,
     /// Payload bytes and estimated distortion of the last frame coded intra.
     last_intra: Option<(usize, f64)>,
+}
+
+/// A coded frame kept as a possible reference.
+struct Stored {
+    frame: u32,
+    intra: bool,
+    reference: Reference,
 }
 
 impl SequenceEncoder {
@@ -305,7 +341,7 @@ impl SequenceEncoder {
         if !min.iter().chain(&max).all(|c| c.is_finite()) {
             return Err(InputError("bounding box must be finite".into()));
         }
-        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, reference: None, last_intra: None })
+        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, references: Vec::new(), last_intra: None })
     }
 
     pub fn header(&self) -> &SequenceHeader {
@@ -313,7 +349,7 @@ impl SequenceEncoder {
     }
 
     /// Makes the next frame frame `index`, the first of a group (a multiple of the intra
-    /// period), and forgets the reference and the last intra frame. The first frame of a
+    /// period), and forgets the references and the last intra frame. The first frame of a
     /// group is intra and reads neither, so from there on this encoder produces the units
     /// the sequential encoder does, and the groups of a sequence can be encoded apart. Only
     /// the `same_topology` statistic of that first frame differs: it has no previous input.
@@ -325,7 +361,9 @@ impl SequenceEncoder {
                 self.header.frame_count
             )));
         }
-        (self.frame, self.reference, self.last_intra) = (index, None, None);
+        self.frame = index;
+        self.references.clear();
+        self.last_intra = None;
         Ok(())
     }
 
@@ -339,45 +377,91 @@ impl SequenceEncoder {
             return Err(InputError("every face is degenerate once coincident vertices are merged".into()));
         }
         limits::check_valence(&welded)?;
-        let (h, cfg) = (&self.header, &self.config);
+        let h = &self.header;
         let input = Mesh::new(welded.positions.iter().map(|&p| h.grid.to_grid(p)).collect(), welded.faces);
         let target = Bvh::new(&input.positions, &input.faces);
-        let same_topology = self.reference.as_ref().is_some_and(|r| tracking::same_connectivity(&r.input, &input));
-        let may_predict = self.frame % cfg.intra_period != 0 && self.reference.is_some();
-        let anchor_start = Instant::now();
-        let (anchor, motion) = may_predict.then(|| self.anchor_positions(&input, &target, same_topology)).flatten().unzip();
-        let anchor_seconds = anchor_start.elapsed().as_secs_f64();
-        let anchor = anchor.map(|moved| self.predicted_base(moved, &target));
-        let predicted = anchor.map(|a| self.predicted(&a, &input, &target)).transpose()?;
+        let same_topology = self.references.last().is_some_and(|s| tracking::same_connectivity(&s.reference.input, &input));
+        let (predicted, anchor_seconds) = self.best_predicted(&input, &target)?;
         let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
-        let unit = bitstream::write_unit(chosen.frame_type, &chosen.payload);
+        let unit = bitstream::write_unit(chosen.candidate.frame_type, &chosen.candidate.payload);
+        let c = chosen.candidate;
         let stats = FrameStats {
-            frame_type: Some(chosen.frame_type),
+            frame_type: Some(c.frame_type),
+            reference_distance: chosen.reference_distance,
             bytes: unit.len(),
-            base_bytes: chosen.base_bytes,
-            displacement_bytes: chosen.displacement_bytes,
-            base_vertices: chosen.base.len(),
-            base_faces: chosen.faces.len(),
-            output_vertices: chosen.reconstruction.positions.len(),
-            output_faces: chosen.reconstruction.faces.len(),
+            base_bytes: c.base_bytes,
+            displacement_bytes: c.displacement_bytes,
+            base_vertices: c.base.len(),
+            base_faces: c.faces.len(),
+            output_vertices: c.reconstruction.positions.len(),
+            output_faces: c.reconstruction.faces.len(),
             same_topology,
             rejected_bytes,
-            anchor_seconds: if may_predict { anchor_seconds } else { 0.0 },
+            anchor_seconds,
             seconds: start.elapsed().as_secs_f64(),
         };
-        let base = Mesh::new(decoder::base_in_world_units(&self.header, &chosen.base), chosen.faces.clone());
-        let motion = motion.filter(|_| chosen.frame_type == FrameType::Predicted);
-        self.reference = Some(Reference { input, base: chosen.base, faces: chosen.faces, coefficients: chosen.coefficients, motion, surface: target });
+        let base = Mesh::new(decoder::base_in_world_units(&self.header, &c.base), c.faces.clone());
+        let intra = c.frame_type == FrameType::Intra;
+        let reference = Reference { input, base: c.base, faces: c.faces, coefficients: c.coefficients, motion: chosen.motion, surface: target };
+        self.keep_reference(Stored { frame: self.frame, intra, reference });
         self.frame += 1;
-        Ok(EncodedFrame { unit, reconstruction: chosen.reconstruction, base, stats })
+        Ok(EncodedFrame { unit, reconstruction: c.reconstruction, base, stats })
     }
 
-    /// The reference base mesh moved onto the current frame (grid units), if this frame may
-    /// be predicted, and how it was moved, which the next frame reuses if this one is predicted.
-    fn anchor_positions(&self, input: &Mesh, target: &Bvh, same_topology: bool) -> Option<(Vec<[f64; 3]>, Motion)> {
-        let r = self.reference.as_ref()?;
+    /// Adds the frame just coded to the references and forgets those no later frame may try.
+    fn keep_reference(&mut self, stored: Stored) {
+        self.references.push(stored);
+        let recent = self.references.len().saturating_sub(self.config.references as usize);
+        let latest_intra = self.references.iter().rposition(|s| s.intra).filter(|_| self.config.intra_reference);
+        let mut i = 0;
+        self.references.retain(|_| {
+            i += 1;
+            i - 1 >= recent || Some(i - 1) == latest_intra
+        });
+    }
+
+    /// The references this frame tries, most recent first.
+    fn reference_candidates(&self) -> Vec<&Stored> {
+        let recent = self.references.len().saturating_sub(self.config.references as usize);
+        let mut candidates: Vec<&Stored> = self.references[recent..].iter().rev().collect();
+        if self.config.intra_reference {
+            if let Some(intra) = self.references[..recent].iter().rev().find(|s| s.intra) {
+                candidates.push(intra);
+            }
+        }
+        candidates
+    }
+
+    /// The best predicted candidate over the references this frame may try (None for the
+    /// first frame of a group, or when no reference can be moved onto the input), and the
+    /// seconds spent moving reference bases onto the input.
+    fn best_predicted(&self, input: &Mesh, target: &Bvh) -> Result<(Option<Chosen>, f64), InputError> {
+        let mut best: Option<Chosen> = None;
+        let mut anchor_seconds = 0.0;
+        if self.frame % self.config.intra_period == 0 {
+            return Ok((None, 0.0));
+        }
+        for stored in self.reference_candidates() {
+            let r = &stored.reference;
+            let anchor_start = Instant::now();
+            let Some((moved, motion)) = self.anchor_positions(r, input, target) else { continue };
+            anchor_seconds += anchor_start.elapsed().as_secs_f64();
+            let base = self.predicted_base(r, moved, target);
+            let candidate = self.predicted(r, self.frame - stored.frame, &base, target)?;
+            let distortion = self.distortion(&candidate.reconstruction, input, target);
+            let c = Chosen { candidate, distortion, reference_distance: self.frame - stored.frame, motion: Some(motion) };
+            if best.as_ref().is_none_or(|b| self.rd_cost(&c) < self.rd_cost(b)) {
+                best = Some(c);
+            }
+        }
+        Ok((best, anchor_seconds))
+    }
+
+    /// The reference base mesh moved onto the current frame (grid units), if it can be,
+    /// and how it was moved, which the next frame reuses if this one is predicted from it.
+    fn anchor_positions(&self, r: &Reference, input: &Mesh, target: &Bvh) -> Option<(Vec<[f64; 3]>, Motion)> {
         let reference = Mesh::new(decoder::base_in_grid_units(&self.header, &r.base), r.faces.clone());
-        let (moved, motion) = if same_topology {
+        let (moved, motion) = if tracking::same_connectivity(&r.input, input) {
             let bindings = match &r.motion {
                 Some(Motion::Tracked(b)) => b.clone(),
                 _ => tracking::bind(&reference.positions, &r.input),
@@ -403,13 +487,11 @@ impl SequenceEncoder {
     /// them bends, and the refit moves the base so that its subdivision follows
     /// (horse_gallop, QP 22-34: D1 BD-rate against all-intra -28.6 -> -30.9 %). The next
     /// frame starts again from the bindings, not from the refitted places.
-    fn predicted_base(&self, moved: Vec<[f64; 3]>, target: &Bvh) -> Vec<[u32; 3]> {
-        let r = self.reference.as_ref().expect("predicted frames have a reference");
+    fn predicted_base(&self, r: &Reference, moved: Vec<[f64; 3]>, target: &Bvh) -> Vec<[u32; 3]> {
         let moved = if self.config.refit { refit_base(&Mesh::new(moved, r.faces.clone()), &self.header.schemes, target) } else { moved };
         let base_grid = self.header.grid.coarser(self.header.base_bits);
         moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect()
     }
-
     fn intra(&self, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
         let h = &self.header;
         let base_bytes = base_mesh_bytes(h, &self.config, &input.positions, &input.faces, target)?;
@@ -421,13 +503,13 @@ impl SequenceEncoder {
         self.finish_candidate(FrameType::Intra, w, base_bytes.len(), base, faces, target, None)
     }
 
-    fn predicted(&self, anchor: &[[u32; 3]], _input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
-        let r = self.reference.as_ref().expect("predicted frames have a reference");
+    /// The frame predicted from `r`, `distance` frames back, with its base moved to `anchor`.
+    fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], target: &Bvh) -> Result<Candidate, InputError> {
         let mut enc = ec::Encoder::new();
         motion::encode_motion(&mut enc, &r.base, anchor, &r.faces);
         let motion_bytes = enc.finish();
         let mut w = Writer::default();
-        w.u32(1);
+        w.u32(distance);
         w.i32(self.config.qp);
         w.block(&motion_bytes);
         self.finish_candidate(FrameType::Predicted, w, motion_bytes.len(), anchor.to_vec(), r.faces.clone(), target, Some(&r.coefficients))
@@ -496,25 +578,34 @@ impl SequenceEncoder {
     /// first held against the last intra frame's (rate, distortion); only when it loses
     /// there is this frame also coded intra and compared, which spares most predicted
     /// frames a second encoding.
-    fn choose(&mut self, predicted: Option<Candidate>, input: &Mesh, target: &Bvh) -> Result<(Candidate, usize), InputError> {
-        let Some(p) = predicted else {
-            let intra = self.intra(input, target)?;
-            if self.config.intra_period > 1 {
-                self.last_intra = Some((intra.payload.len(), self.distortion(&intra.reconstruction, input, target)));
-            }
-            return Ok((intra, 0));
+    fn choose(&mut self, predicted: Option<Chosen>, input: &Mesh, target: &Bvh) -> Result<(Chosen, usize), InputError> {
+        // All-intra streams make no decision: their distortion is not estimated.
+        let measured = self.config.intra_period > 1;
+        let intra = |s: &Self| -> Result<Chosen, InputError> {
+            let candidate = s.intra(input, target)?;
+            let distortion = if measured { s.distortion(&candidate.reconstruction, input, target) } else { 0.0 };
+            Ok(Chosen { candidate, distortion, reference_distance: 0, motion: None })
         };
-        let dp = self.distortion(&p.reconstruction, input, target);
+        let Some(p) = predicted else {
+            let i = intra(self)?;
+            self.last_intra = measured.then_some((i.candidate.payload.len(), i.distortion));
+            return Ok((i, 0));
+        };
         if let Some((bytes, di)) = self.last_intra {
-            if self.rd_prefers(p.payload.len(), dp, bytes, di) {
+            if self.rd_prefers(p.candidate.payload.len(), p.distortion, bytes, di) {
                 return Ok((p, 0));
             }
         }
-        let intra = self.intra(input, target)?;
-        let di = self.distortion(&intra.reconstruction, input, target);
-        self.last_intra = Some((intra.payload.len(), di));
-        let (p_bytes, i_bytes) = (p.payload.len(), intra.payload.len());
-        Ok(if self.rd_prefers(p_bytes, dp, i_bytes, di) { (p, i_bytes) } else { (intra, p_bytes) })
+        let i = intra(self)?;
+        self.last_intra = Some((i.candidate.payload.len(), i.distortion));
+        let (p_bytes, i_bytes) = (p.candidate.payload.len(), i.candidate.payload.len());
+        Ok(if self.rd_prefers(p_bytes, p.distortion, i_bytes, i.distortion) { (p, i_bytes) } else { (i, p_bytes) })
+    }
+
+    /// The cost that `rd_prefers` compares: PSNR loss in dB plus `rd_slope_db` per doubling
+    /// of the rate, up to a constant; the lower the better.
+    fn rd_cost(&self, c: &Chosen) -> f64 {
+        10.0 * c.distortion.max(f64::MIN_POSITIVE).log10() + self.config.rd_slope_db * (c.candidate.payload.len() as f64).log2()
     }
 
     /// True when a predicted frame of `p_bytes` and distortion `dp` beats an intra frame of
@@ -591,7 +682,7 @@ pub fn max_base_faces(target: usize) -> usize {
 /// coefficient: a coefficient within the dead zone of its reference's then costs nothing,
 /// where rounding it first could leave a difference of one either way.
 fn differences_from(steps: &[f64], reference: &[i32]) -> Vec<i32> {
-    steps.iter().zip(reference).map(|(&x, &r)| quantize::truncate_dead_zone(x - r as f64, quantize::PREDICTED_DEAD_ZONE)).collect()
+    steps.iter().zip(reference).map(|(&x, &r)| quantize::round_beyond_dead_zone(x - r as f64, quantize::PREDICTED_DEAD_ZONE)).collect()
 }
 
 /// Forward lifting of the local displacement components, scaled per level (and, with AQ,
@@ -634,8 +725,8 @@ mod tests {
     #[test]
     fn differences_within_the_dead_zone_of_the_reference_are_zero() {
         // 2.6 rounds to 2 on its own (dead zone), which would leave -1 against a reference of 3.
-        // Beyond the dead zone (one step) differences are truncated.
-        assert_eq!(differences_from(&[2.6, -0.2, 5.0, -4.9, 7.5], &[3, 0, 3, -3, 2]), vec![0, 0, 2, -1, 5]);
+        // Beyond the dead zone (one step) differences are rounded as intra coefficients are.
+        assert_eq!(differences_from(&[2.6, -0.2, 5.0, -4.9, 7.7], &[3, 0, 3, -3, 2]), vec![0, 0, 2, -2, 6]);
     }
 
     #[test]

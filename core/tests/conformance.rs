@@ -97,3 +97,12 @@ fn level_scales_equal_the_shared_table() {
     }
     assert_eq!(n, 13 * 88);
 }
+
+#[test]
+fn a_vector_refers_further_back_than_the_previous_frame() {
+    // Reference choice: far_reference.dmsh's last frame repeats frame 1 and refers to it.
+    let data = std::fs::read(vectors().join("far_reference.dmsh")).unwrap();
+    let dec = Decoder::new(data).unwrap();
+    let last = dec.frame_count() - 1;
+    assert_eq!(dec.frame_info(last).unwrap().reference, Some(1));
+}

@@ -10,7 +10,7 @@ from pathlib import Path
 
 # The API, numpy and the file readers are imported by the commands that use them:
 # `dynmesh decode` needs none of them, and importing them would cost it more than decoding.
-from .defaults import ENCODER, TEXTURE, TEXTURE_CODECS
+from .defaults import ENCODER, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS
 from .safety import StagedDirectory, mesh_inputs, refuse_inputs
 from .sequence import resolve_sequence
 
@@ -66,7 +66,8 @@ def _table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
 def _encoder_options(a) -> dict:
     return dict(qp=a.qp, base_ratio=a.base_ratio, subdiv=a.subdiv, scheme=a.scheme, bits=a.bits,
                 base_bits=a.base_bits, normal_only=not a.all_components, intra_period=a.intra_period,
-                inter=a.inter, rd_slope=a.rd_slope, refit=a.refit, lifting=a.lifting, fold_repair=a.fold_repair, rigid_align=a.rigid_align, aq=a.aq, aq_alpha=a.aq_alpha,
+                inter=a.inter, rd_slope=a.rd_slope, refit=a.refit, lifting=a.lifting, fold_repair=a.fold_repair, rigid_align=a.rigid_align,
+                references=a.references, intra_reference=a.intra_reference, aq=a.aq, aq_alpha=a.aq_alpha,
                 aq_delta=a.aq_delta, aq_h=a.aq_h, texture="auto" if a.texture is None else a.texture,
                 texture_size=a.texture_size, texture_qp=a.texture_qp, texture_codec=a.texture_codec)
 
@@ -265,9 +266,10 @@ def cmd_info(a) -> dict:
               f"({h['base_bits']}-bit base mesh), "
               f"{h['subdiv_iterations']} subdivision(s) ({','.join(h['schemes']) or 'none'}), {h['components']} displacement component(s)")
         lost = {d["frame"]: d for d in result["damaged"]}
-        rows = [{"frame": i, **f, "status": f"damaged at byte {lost[i]['offset']}" if i in lost else "ok"}
+        rows = [{"frame": i, **f, "ref": "-" if f.get("reference") is None else str(f["reference"]),
+                 "status": f"damaged at byte {lost[i]['offset']}" if i in lost else "ok"}
                 for i, f in enumerate(result["frames"])]
-        print(_table(rows, [("frame", "frame", "d"), ("type", "type", "s"), ("qp", "qp", "d"),
+        print(_table(rows, [("frame", "frame", "d"), ("type", "type", "s"), ("ref", "ref", "s"), ("qp", "qp", "d"),
                             ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
                             ("displacement_bytes", "disp B", "d"), ("texture_bytes", "texture B", "d"),
                             ("status", "status", "s")]))
@@ -507,6 +509,12 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--rigid-align", action=argparse.BooleanOptionalAction, default=d["rigid_align"],
                    help="move each connected part of the reference base rigidly onto the input (ICP, predicted from the "
                         "previous frame's motion) before the anchor's matching (not in the paper; default: %(default)s)")
+    p.add_argument("--references", type=int, default=d["references"], metavar="N",
+                   help="reference choice: a predicted frame tries each of the last N coded frames of its group as "
+                        "reference and keeps the best by rate and distortion; each costs about one more "
+                        f"encoding of the frame (1 to {MAX_REFERENCES}; default {d['references']}: the previous frame)")
+    p.add_argument("--intra-reference", action=argparse.BooleanOptionalAction, default=d["intra_reference"],
+                   help="reference choice: also try the group's latest intra frame as reference (default: %(default)s)")
     p.add_argument("--rd-slope", type=float, default=d["rd_slope"],
                    help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
                         f"intra (default {d['rd_slope']:g})")

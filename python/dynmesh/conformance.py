@@ -91,6 +91,9 @@ def vector_specs() -> list[tuple[str, str, list[Mesh], dict]]:
         ("constant_jitter_mode0", "I + P on constant topology with strong motion: the last P frame codes its "
          "coefficients directly (coefficient mode 0), the other as differences (mode 1)",
          _jittered(changing[0], 3), dict(small, scheme="midpoint", rd_slope=100.0)),
+        ("far_reference", "I + P on constant topology with reference choice: the last frame repeats frame 1 "
+         "and refers to it, two frames back (reference distance 2)",
+         constant + constant[1:2], dict(small, scheme="midpoint", references=3, intra_reference=True, rd_slope=100.0)),
         ("textured_mixed", "textured (UV atlas, AV1 texture video), I + P, mixed schemes",
          _textured(constant[:2]), dict(small, scheme="mixed", texture_size=64, texture_codec="av1", texture_qp=40)),
     ]

@@ -8,6 +8,9 @@ from . import _core
 #: Encoder defaults, as the Rust core defines them; ``dynmesh encode --help`` documents each.
 ENCODER: dict = dict(_core.default_options())
 
+#: The most recent frames a predicted frame may try as its reference (``references``).
+MAX_REFERENCES: int = _core.MAX_REFERENCES
+
 #: Defaults of the texture options (``encode_frames`` takes them beside the geometry ones).
 TEXTURE: dict = {"texture_size": 2048, "texture_qp": 32, "texture_codec": "hevc"}
 

@@ -4,7 +4,8 @@
 // the Rust `Decoder::new` does; `decodeFrame(i)` returns frame i's positions (flat float64
 // xyz) and faces (flat uint32) bit for bit as the Rust decoder at the same level of detail,
 // or throws a DecodeError with the Rust message. A predicted frame is decoded from the intra
-// frame that starts its chain, or from the last decoded frame when that is on the chain.
+// frame that starts its chain, or from the nearest state on the chain that the cache holds
+// (the last CACHED_STATES decoded frames and the latest intra frame, as `StateCache`).
 // `lod` (0 ..= subdivision iterations, default all) stops after that many subdivisions:
 // coefficients of finer levels are not read, and the frame is reconstructed without them.
 
@@ -18,6 +19,8 @@ import { subdivide } from './subdivide.js';
 import { reconstruct } from './reconstruct.js';
 
 export const MAX_OUTPUT_FACES = 2 ** 25;
+/** Decoded frames whose states are kept besides the latest intra frame's (`CACHED_STATES`). */
+export const CACHED_STATES = 8;
 export const FACES_PER_UNIT_BYTE = 512;
 export const MIN_FACE_ALLOWANCE = 2 ** 20;
 const QP_MIN = -24, QP_MAX = 63;
@@ -47,8 +50,10 @@ export class Decoder {
     const lod = options.lod ?? s;
     if (!Number.isInteger(lod) || lod < 0 || lod > s) throw new RangeError(`level of detail ${lod} out of range (the stream has ${s} subdivision iterations)`);
     this.lod = lod;
+    /** Oldest first; the last entry is the frame decoded last. @type {{index:number, state:object}[]} */
+    this.recent = [];
     /** @type {{index:number, state:object}|null} */
-    this.last = null;
+    this.intra = null;
   }
 
   get frameCount() {
@@ -87,35 +92,49 @@ export class Decoder {
    * @returns {Frame}
    */
   decodeFrame(index) {
+    // Back from `index` to the first frame that is cached or intra, then forward again.
     const chain = [index];
     for (;;) {
       const f = chain[chain.length - 1];
-      if (chain.length > 1 && this.last !== null && this.last.index === f) break;
+      if (chain.length > 1 && this.cached(f) !== null) break;
       const u = this.unit(f);
       if (u.type === INTRA) break;
       chain.push(f - readPayload(this.data, u, f).referenceDistance);
     }
-    let reference = null;
-    for (let i = chain.length - 1; i >= 1; i--) {
-      const f = chain[i];
-      if (reference === null && this.last !== null && this.last.index === f) reference = this.last.state;
-      else reference = this.decodeState(f, reference).state;
+    for (let k = chain.length - 1; k >= 1; k--) {
+      if (this.cached(chain[k]) !== null) continue;
+      const reference = k + 1 < chain.length ? this.cached(chain[k + 1]) : null;
+      this.keep(chain[k], this.decodeState(chain[k], reference).state);
     }
-    const { state, sub, qp } = this.decodeState(index, reference);
+    const { state, sub, qp } = this.decodeState(index, chain.length > 1 ? this.cached(chain[1]) : null);
     const positions = reconstruct(this.header, sub, state.coefficients, qp);
-    this.last = { index, state };
+    this.keep(index, state);
     return { positions, faces: sub.faces, type: this.units[index].type };
+  }
+
+  /** The kept state of frame `f`, or null. */
+  cached(f) {
+    for (let i = this.recent.length - 1; i >= 0; i--) if (this.recent[i].index === f) return this.recent[i].state;
+    return this.intra !== null && this.intra.index === f ? this.intra.state : null;
+  }
+
+  keep(index, state) {
+    this.recent = this.recent.filter((e) => e.index !== index);
+    if (this.units[index].type === INTRA) this.intra = { index, state };
+    this.recent.push({ index, state });
+    if (this.recent.length > CACHED_STATES) this.recent.shift();
   }
 
   /** The base mesh of the frame decoded last, in the input's units: the texture atlas of an
    * intra frame is coded on it (`Decoder::last_base`). */
   lastBase() {
-    if (this.last === null) return null;
-    const h = this.header, s = this.last.state;
+    const last = this.recent.length > 0 ? this.recent[this.recent.length - 1] : null;
+    if (last === null) return null;
+    const h = this.header, s = last.state;
     const step = 2 ** (h.bits - h.baseBits);
     const p = new Float64Array(s.positions.length);
     for (let i = 0; i < p.length; i++) p[i] = h.origin[i % 3] + (0.0 + s.positions[i] * step) * h.step;
-    return { index: this.last.index, positions: p, faces: s.faces };
+    return { index: last.index, positions: p, faces: s.faces };
   }
 
   decodeState(f, reference) {

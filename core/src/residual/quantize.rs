@@ -6,7 +6,7 @@
 //! vertices through the inverse transform, so they are quantized more finely. Rounding has a
 //! dead zone: magnitudes are rounded down unless their fraction reaches `1 - ROUNDING_BIAS`.
 //! A predicted frame's differences from its reference's coefficients have a wider dead zone,
-//! [`PREDICTED_DEAD_ZONE`] steps, and are truncated beyond it.
+//! [`PREDICTED_DEAD_ZONE`] steps, and are rounded as intra coefficients beyond it.
 
 use crate::geom::mesh::Adjacency;
 
@@ -26,7 +26,10 @@ pub const ROUNDING_BIAS: f64 = 1.0 / 3.0;
 /// by tracking), dead zone 1 / 2 / 3 steps: -51.8 / -57.7 / -59.4 %; against `--inter none` on thomas -36.4 /
 /// -45.0 / -45.7 %, dancer -10.5 / -12.3 / -10.9 %. Rounding the differences as intra
 /// coefficients are (no wider dead zone, bias 1/3) gave horse_gallop -40.0 % against -47.2 %
-/// for a dead zone of one step, before the tracking bindings.
+/// for a dead zone of one step, before the tracking bindings. Beyond the dead zone the
+/// differences are rounded with the intra bias, not truncated: D1 BD-rate -0.8 %
+/// basketball_player, -0.3 % dancer, -2.3 % mitch, -1.0 % thomas, -1.1 % horse_gallop (QP
+/// 22-34, 6 frames, defaults otherwise).
 pub const PREDICTED_DEAD_ZONE: f64 = 1.0;
 
 /// Scale (inverse step) of each level of detail for `qp` and position bit depth `bits`.
@@ -51,11 +54,11 @@ pub fn round_dead_zone(x: f64, bias: f64) -> i32 {
     if x < 0.0 { -m } else { m }
 }
 
-/// Zero when `|x| < dead_zone` steps, else `x` truncated towards zero (capped as
-/// [`round_dead_zone`]).
+/// Zero when `|x| < dead_zone` steps, else `x` rounded as an intra coefficient is
+/// ([`round_dead_zone`] with [`ROUNDING_BIAS`]).
 #[inline]
-pub fn truncate_dead_zone(x: f64, dead_zone: f64) -> i32 {
-    if x.abs() < dead_zone { 0 } else { round_dead_zone(x, 0.0) }
+pub fn round_beyond_dead_zone(x: f64, dead_zone: f64) -> i32 {
+    if x.abs() < dead_zone { 0 } else { round_dead_zone(x, ROUNDING_BIAS) }
 }
 
 /// Adaptive displacement quantization (the paper's section II-C): vertex `v`'s scale is
@@ -126,10 +129,11 @@ mod tests {
         assert_eq!(intra(-0.7, 1.0), -1);
         assert_eq!(intra(2.5, 2.0), 5);
         assert_eq!(dequantize_shifted(5, 2.0, 0.0), 2.5);
-        // Differences from a reference: a wide dead zone, then truncation.
-        assert_eq!(truncate_dead_zone(1.99, 2.0), 0);
-        assert_eq!(truncate_dead_zone(-2.0, 2.0), -2);
-        assert_eq!(truncate_dead_zone(3.7, 2.0), 3);
+        // Differences from a reference: a wide dead zone, then rounding as intra.
+        assert_eq!(round_beyond_dead_zone(1.99, 2.0), 0);
+        assert_eq!(round_beyond_dead_zone(-2.0, 2.0), -2);
+        assert_eq!(round_beyond_dead_zone(3.6, 2.0), 3);
+        assert_eq!(round_beyond_dead_zone(-3.7, 2.0), -4);
         assert_eq!(round_dead_zone(1e300, 0.5), i32::MAX / 2);
     }
 
