@@ -413,11 +413,8 @@ impl SequenceEncoder {
         self.references.push(stored);
         let recent = self.references.len().saturating_sub(self.config.references as usize);
         let latest_intra = self.references.iter().rposition(|s| s.intra).filter(|_| self.config.intra_reference);
-        let mut i = 0;
-        self.references.retain(|_| {
-            i += 1;
-            i - 1 >= recent || Some(i - 1) == latest_intra
-        });
+        let kept = std::mem::take(&mut self.references).into_iter().enumerate();
+        self.references = kept.filter(|(i, _)| *i >= recent || Some(*i) == latest_intra).map(|(_, s)| s).collect();
     }
 
     /// The references this frame tries, most recent first.
@@ -450,7 +447,7 @@ impl SequenceEncoder {
             let candidate = self.predicted(r, self.frame - stored.frame, &base, target)?;
             let distortion = self.distortion(&candidate.reconstruction, input, target);
             let c = Chosen { candidate, distortion, reference_distance: self.frame - stored.frame, motion: Some(motion) };
-            if best.as_ref().is_none_or(|b| self.rd_cost(&c) < self.rd_cost(b)) {
+            if best.as_ref().map_or(true, |b| self.rd_cost(&c) < self.rd_cost(b)) {
                 best = Some(c);
             }
         }
