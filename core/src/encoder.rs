@@ -433,20 +433,21 @@ impl SequenceEncoder {
     /// first frame of a group, or when no reference can be moved onto the input), and the
     /// seconds spent moving reference bases onto the input.
     fn best_predicted(&self, input: &Mesh, target: &Bvh) -> Result<(Option<Chosen>, f64), InputError> {
-        let mut best: Option<Chosen> = None;
-        let mut anchor_seconds = 0.0;
         if self.frame % self.config.intra_period == 0 {
             return Ok((None, 0.0));
         }
+        let mut best: Option<Chosen> = None;
+        let mut anchor_seconds = 0.0;
         for stored in self.reference_candidates() {
             let r = &stored.reference;
             let anchor_start = Instant::now();
             let Some((moved, motion)) = self.anchor_positions(r, input, target) else { continue };
             anchor_seconds += anchor_start.elapsed().as_secs_f64();
             let base = self.predicted_base(r, moved, target);
-            let candidate = self.predicted(r, self.frame - stored.frame, &base, target)?;
+            let reference_distance = self.frame - stored.frame;
+            let candidate = self.predicted(r, reference_distance, &base, target)?;
             let distortion = self.distortion(&candidate.reconstruction, input, target);
-            let c = Chosen { candidate, distortion, reference_distance: self.frame - stored.frame, motion: Some(motion) };
+            let c = Chosen { candidate, distortion, reference_distance, motion: Some(motion) };
             if best.as_ref().map_or(true, |b| self.rd_cost(&c) < self.rd_cost(b)) {
                 best = Some(c);
             }
