@@ -28,45 +28,6 @@ use crate::stream::bitstream::{self, FrameType, SequenceHeader};
 use crate::stream::ec;
 use crate::stream::payload::Payload;
 
-/// How predicted frames find their base mesh (the paper's ablation switches).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum InterMode {
-    /// Predict only frames whose input has the reference input's connectivity (the MPEG
-    /// test model's behaviour); every topology change forces an intra frame.
-    None,
-    /// Also predict other frames, through an anchor mesh from nearest-neighbour matching.
-    Nns,
-    /// ... with motion estimation before the matching.
-    NnsMe,
-    /// ... and the paper's QEM refinement of the matches (the paper's full method).
-    NnsMeQem,
-    /// ... with our projection of the motion-predicted points instead of the QEM stage.
-    NnsMeProj,
-}
-
-impl InterMode {
-    pub const NAMES: [&'static str; 5] = ["none", "nns", "nns+me", "nns+me+qem", "nns+me+proj"];
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        let modes = [Self::None, Self::Nns, Self::NnsMe, Self::NnsMeQem, Self::NnsMeProj];
-        Self::NAMES.iter().position(|&n| n == name).map(|i| modes[i])
-    }
-
-    pub fn name(self) -> &'static str {
-        Self::NAMES[self as usize]
-    }
-
-    fn anchor_stages(self) -> Option<AnchorStages> {
-        match self {
-            Self::None => None,
-            Self::Nns => Some(AnchorStages::Nns),
-            Self::NnsMe => Some(AnchorStages::NnsMe),
-            Self::NnsMeQem => Some(AnchorStages::NnsMeQem),
-            Self::NnsMeProj => Some(AnchorStages::NnsMeProj),
-        }
-    }
-}
-
 /// The lifting transform's update step (see `transform::Lifting`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum LiftingChoice {
@@ -117,7 +78,11 @@ pub struct EncoderConfig {
     pub normal_only: bool,
     /// Frames per group: every `intra_period`-th frame is intra; 1 makes every frame intra.
     pub intra_period: u32,
-    pub inter: InterMode,
+    /// How predicted frames find their base mesh when the input's connectivity changed: the
+    /// anchor mesh built by these stages, or `None` to predict only frames whose input has
+    /// the reference input's connectivity (the MPEG test model's behaviour; every topology
+    /// change then forces an intra frame).
+    pub inter: Option<AnchorStages>,
     /// Adaptive displacement quantization, or `None` for one scale per level.
     pub aq: Option<AqParams>,
     /// The exchange rate of the intra/inter decision, in dB of PSNR per doubling of the
@@ -153,7 +118,7 @@ impl Default for EncoderConfig {
             base_bits: 9,
             normal_only: true,
             intra_period: 32,
-            inter: InterMode::NnsMeProj,
+            inter: Some(AnchorStages::NnsMeProj),
             aq: Some(AqParams::default()),
             rd_slope_db: 4.0,
             refit: true,
@@ -472,7 +437,7 @@ impl SequenceEncoder {
             };
             (tracking::bound_positions(&bindings, input, &reference.positions), Motion::Tracked(bindings))
         } else {
-            let stages = self.config.inter.anchor_stages()?;
+            let stages = self.config.inter?;
             let params = AnchorParams { stages, rigid_align: self.config.rigid_align, repair_folds: self.config.fold_repair };
             let motions = match &r.motion {
                 Some(Motion::Anchor(m)) => m.as_deref(),
