@@ -13,7 +13,7 @@
 use rayon::prelude::*;
 
 use crate::geom::bvh::Bvh;
-use crate::geom::mesh::{add, dot, interpolate, sub, Mesh};
+use crate::geom::mesh::{add, interpolate, sub, Mesh};
 
 /// True when `a` and `b` have the same vertex count and the same triangles in the same order.
 pub fn same_connectivity(a: &Mesh, b: &Mesh) -> bool {
@@ -39,8 +39,7 @@ pub fn bind(base: &[[f64; 3]], input: &Mesh) -> Bindings {
     base.par_iter()
         .map(|&p| {
             let hit = bvh.closest_point(p)?;
-            let [a, b, c] = input.faces[hit.triangle as usize].map(|v| input.positions[v as usize]);
-            Some(Binding { triangle: hit.triangle, weights: barycentric(hit.point, a, b, c), offset: sub(p, hit.point) })
+            Some(Binding { triangle: hit.triangle, weights: hit.bary, offset: sub(p, hit.point) })
         })
         .collect()
 }
@@ -57,21 +56,6 @@ pub fn bound_positions(bindings: &[Option<Binding>], input: &Mesh, unbound: &[[f
             add(interpolate(corners, b.weights), b.offset)
         })
         .collect()
-}
-
-/// Barycentric coordinates of `p` (assumed in the plane of `abc`); a degenerate triangle
-/// gives its first corner.
-fn barycentric(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
-    let (v0, v1, v2) = (sub(b, a), sub(c, a), sub(p, a));
-    let (d00, d01, d11) = (dot(v0, v0), dot(v0, v1), dot(v1, v1));
-    let (d20, d21) = (dot(v2, v0), dot(v2, v1));
-    let den = d00 * d11 - d01 * d01;
-    if den.abs() <= f64::EPSILON * d00 * d11 || den == 0.0 {
-        return [1.0, 0.0, 0.0];
-    }
-    let v = (d11 * d20 - d01 * d21) / den;
-    let w = (d00 * d21 - d01 * d20) / den;
-    [1.0 - v - w, v, w]
 }
 
 #[cfg(test)]
