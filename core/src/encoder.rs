@@ -433,7 +433,7 @@ impl SequenceEncoder {
         let (moved, motion) = if tracking::same_connectivity(&r.input, input) {
             let bindings = match &r.motion {
                 Some(Motion::Tracked(b)) => b.clone(),
-                _ => tracking::bind(&reference.positions, &r.input),
+                _ => tracking::bind(&reference.positions, &r.surface),
             };
             (tracking::bound_positions(&bindings, input, &reference.positions), Motion::Tracked(bindings))
         } else {
