@@ -66,6 +66,18 @@ def test_every_command_has_help():
         assert "usage" in run(cmd, "--help").stdout
 
 
+def test_encode_flags_are_the_encoder_options():
+    # Every option the core names has a flag, and the flags' defaults are the core's defaults.
+    from dynmesh import cli
+    from dynmesh.defaults import ENCODER, TEXTURE
+
+    a = cli.parser().parse_args(["encode", "in", "-o", "out.dmsh"])
+    assert cli._encoder_options(a) == {**ENCODER, **TEXTURE, "texture": "auto"}
+    a = cli.parser().parse_args(["encode", "in", "-o", "o", "--all-components", "--no-aq", "--inter", "nns", "--base-ratio", "0.1"])
+    options = cli._encoder_options(a)
+    assert (options["normal_only"], options["aq"], options["inter"], options["base_ratio"]) == (False, False, "nns", 0.1)
+
+
 @pytest.mark.parametrize("args, message", [
     (["encode", "missing_dir", "-o", "x.dmsh"], "missing_dir"),
     (["info", "missing.dmsh"], "missing.dmsh"),

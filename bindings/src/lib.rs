@@ -7,6 +7,7 @@ mod colour;
 mod decode_files;
 mod meshio;
 mod obj;
+mod options;
 mod ply;
 mod transfer;
 mod uv;
@@ -19,12 +20,11 @@ use pyo3::types::{PyBytes, PyDict};
 
 use dynmesh::stream::bitstream::{FrameType, SequenceHeader};
 use dynmesh::decoder;
-use dynmesh::encoder::{EncoderConfig, FrameStats, InterMode, LiftingChoice, SequenceEncoder};
+use dynmesh::encoder::{FrameStats, SequenceEncoder};
 use dynmesh::error::DecodeError as CoreDecodeError;
 use dynmesh::geom::mesh::Mesh;
 use dynmesh::eval::metrics;
 use dynmesh::eval::sampling;
-use dynmesh::residual::subdivide::SchemeChoice;
 
 create_exception!(_core, DecodeError, PyValueError, "A stream that cannot be decoded; args are (message, frame or None, byte offset).");
 
@@ -118,53 +118,6 @@ fn header_dict<'py>(py: Python<'py>, h: &SequenceHeader) -> PyResult<Bound<'py, 
     Ok(d)
 }
 
-/// The encoder configuration from a dict of options named as in [`default_options`];
-/// missing keys keep their defaults, unknown keys are an error.
-fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
-    let mut c = EncoderConfig::default();
-    let mut aq_on = c.aq.is_some();
-    let mut aq = c.aq.unwrap_or_default();
-    for (key, value) in options.iter() {
-        let key: String = key.extract()?;
-        match key.as_str() {
-            "qp" => c.qp = value.extract()?,
-            "base_ratio" => c.base_ratio = value.extract()?,
-            "subdiv" => c.subdiv_iterations = value.extract()?,
-            "scheme" => c.scheme = SchemeChoice::parse(&value.extract::<String>()?).map_err(PyValueError::new_err)?,
-            "bits" => c.bits = value.extract()?,
-            "base_bits" => c.base_bits = value.extract()?,
-            "normal_only" => c.normal_only = value.extract()?,
-            "intra_period" => c.intra_period = value.extract()?,
-            "inter" => {
-                let name: String = value.extract()?;
-                c.inter = InterMode::from_name(&name).ok_or_else(|| {
-                    PyValueError::new_err(format!("unknown inter mode {name:?} (one of {})", InterMode::NAMES.join(", ")))
-                })?
-            }
-            "rd_slope" => c.rd_slope_db = value.extract()?,
-            "refit" => c.refit = value.extract()?,
-            "fold_repair" => c.fold_repair = value.extract()?,
-            "rigid_align" => c.rigid_align = value.extract()?,
-            "references" => c.references = value.extract()?,
-            "intra_reference" => c.intra_reference = value.extract()?,
-            "lifting" => {
-                let name: String = value.extract()?;
-                c.lifting = LiftingChoice::from_name(&name).ok_or_else(|| {
-                    PyValueError::new_err(format!("unknown lifting {name:?} (one of {})", LiftingChoice::NAMES.join(", ")))
-                })?
-            }
-            "aq" => aq_on = value.extract()?,
-            "aq_alpha" => aq.alpha = value.extract()?,
-            "aq_delta" => aq.delta = value.extract()?,
-            "aq_h" => aq.h = value.extract()?,
-            _ => return Err(PyValueError::new_err(format!("unknown encoder option {key:?}"))),
-        }
-    }
-    c.aq = aq_on.then_some(aq);
-    c.validate().map_err(|e| PyValueError::new_err(e.0))?;
-    Ok(c)
-}
-
 /// Encodes the frames of one sequence in order; create it with the sequence's bounding box.
 #[pyclass(module = "dynmesh._core")]
 struct Encoder {
@@ -175,7 +128,7 @@ struct Encoder {
 impl Encoder {
     #[new]
     fn new(frame_count: u32, box_min: [f64; 3], box_max: [f64; 3], options: &Bound<'_, PyDict>) -> PyResult<Self> {
-        let config = config_of(options)?;
+        let config = options::config_of(options)?;
         let inner = SequenceEncoder::new(config, frame_count, box_min, box_max).map_err(|e| PyValueError::new_err(e.0))?;
         Ok(Self { inner })
     }
@@ -357,37 +310,9 @@ pub(crate) fn check_measured(mse: &[f64]) -> PyResult<()> {
 }
 
 /// The encoder's default options, keyed as the Python API names them.
-#[pyfunction]
-fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    let c = EncoderConfig::default();
-    let d = PyDict::new(py);
-    d.set_item("qp", c.qp)?;
-    d.set_item("base_ratio", c.base_ratio)?;
-    d.set_item("subdiv", c.subdiv_iterations)?;
-    d.set_item("scheme", c.scheme.spec())?;
-    d.set_item("bits", c.bits)?;
-    d.set_item("base_bits", c.base_bits)?;
-    d.set_item("normal_only", c.normal_only)?;
-    d.set_item("intra_period", c.intra_period)?;
-    d.set_item("inter", c.inter.name())?;
-    d.set_item("rd_slope", c.rd_slope_db)?;
-    d.set_item("refit", c.refit)?;
-    d.set_item("fold_repair", c.fold_repair)?;
-    d.set_item("rigid_align", c.rigid_align)?;
-    d.set_item("references", c.references)?;
-    d.set_item("intra_reference", c.intra_reference)?;
-    d.set_item("lifting", c.lifting.name())?;
-    let aq = c.aq.unwrap_or_default();
-    d.set_item("aq", c.aq.is_some())?;
-    d.set_item("aq_alpha", aq.alpha)?;
-    d.set_item("aq_delta", aq.delta)?;
-    d.set_item("aq_h", aq.h)?;
-    Ok(d)
-}
-
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_function(wrap_pyfunction!(default_options, m)?)?;
+    options::register(m)?;
     m.add_class::<Encoder>()?;
     m.add_class::<Decoder>()?;
     m.add_function(wrap_pyfunction!(mesh_distortion, m)?)?;

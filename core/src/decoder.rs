@@ -1,7 +1,7 @@
 //! The decoder: frame units back to meshes.
 //!
-//! [`reconstruct`] is the single place where quantized coefficients become positions; the
-//! encoder calls it too, which is what makes the two agree bit for bit. Predicted frames
+//! Frame payloads are split by [`Payload::read`] and reconstructed by the model the encoder
+//! shares ([`FrameModel`]), which is what makes the two agree bit for bit. Predicted frames
 //! take their base mesh from the frame they name, so [`Decoder`] walks back to the intra
 //! frame that starts the chain (seeking) and keeps the states of the frames it decoded last
 //! ([`StateCache`]), which later frames refer to.
@@ -11,52 +11,17 @@
 //! beyond K are not read (they come last in the block) and count as zero, and the frame is
 //! reconstructed on the level-K mesh. At K = all iterations nothing changes.
 
-use crate::base::coder as basecoder;
-use crate::stream::bitstream::{self, FrameType, Reader, SequenceHeader, Unit};
-use crate::residual::coefcoder;
-use crate::residual::displace;
-use crate::stream::ec;
+use crate::base::coder::decode_base;
 use crate::error::DecodeError;
-use crate::geom::grid::Grid;
 use crate::geom::mesh::Mesh;
 use crate::inter::motion;
-use crate::residual::quantize;
+use crate::model::{base_in_world_units, face_allowance, subdivided_base, FrameModel, FrameState};
+use crate::residual::coefcoder;
+use crate::residual::subdivide::Subdivision;
+use crate::stream::bitstream::{self, FrameType, SequenceHeader, Unit};
+use crate::stream::ec;
+use crate::stream::payload::Payload;
 use crate::stream::resync::{self, Damage, FrameSlot, TextureSlot};
-use crate::residual::subdivide::{subdivide, Subdivision};
-use crate::residual::transform;
-
-/// Largest subdivided mesh a stream may ask for; a bound on what a hostile stream can make
-/// the decoder allocate. A decode to OBJ peaks at about 190 bytes per output face (1.96M
-/// faces: 368 MB), so 2^23 faces keep it near 1.6 GB (2^25 would have been 6 GB). The largest
-/// input frame (`limits::MAX_INPUT_FACES`) at the largest default base ratio and three
-/// subdivisions makes 7.9M faces, within it.
-pub const MAX_OUTPUT_FACES: usize = 1 << 23;
-/// Output faces a frame may ask for per byte of its unit, beyond a floor of
-/// `MIN_FACE_ALLOWANCE`: so that a few corrupt bytes cannot make the decoder allocate
-/// gigabytes. Real streams need well under 100 (a 15 KB frame decodes to ~400k faces); the
-/// encoder refuses to write a frame beyond this allowance.
-pub const FACES_PER_UNIT_BYTE: usize = 512;
-pub const MIN_FACE_ALLOWANCE: usize = 1 << 20;
-
-/// The most output faces a frame unit of `unit_bytes` bytes may decode to.
-pub fn face_allowance(unit_bytes: usize) -> usize {
-    unit_bytes.saturating_mul(FACES_PER_UNIT_BYTE).clamp(MIN_FACE_ALLOWANCE, MAX_OUTPUT_FACES)
-}
-
-/// The fields of a frame payload. Intra: `qp`, base mesh block, coefficient block.
-/// Predicted: reference distance, `qp`, motion block, coefficient mode, coefficient block.
-pub struct Payload<'a> {
-    /// Frames back to the reference (predicted frames only; 0 for intra).
-    pub reference_distance: u32,
-    pub qp: i32,
-    /// The base mesh block (intra) or the motion block (predicted).
-    pub base: &'a [u8],
-    pub base_offset: u64,
-    /// Predicted frames: the coefficients are differences from the reference's.
-    pub coefficients_predicted: bool,
-    pub coefficients: &'a [u8],
-    pub coefficients_offset: u64,
-}
 
 /// What `frame_info` tells about a frame without decoding it.
 #[derive(Debug, Clone, PartialEq)]
@@ -69,15 +34,6 @@ pub struct FrameInfo {
     pub displacement_bytes: usize,
 }
 
-/// What a predicted frame takes from its reference: the base mesh (positions on the base
-/// grid, faces) and the quantized displacement coefficients.
-#[derive(Clone)]
-struct State {
-    positions: Vec<[u32; 3]>,
-    faces: Vec<[u32; 3]>,
-    coefficients: Vec<i32>,
-}
-
 /// The states of recently decoded frames, which later predicted frames refer to: the last
 /// [`CACHED_STATES`] decoded and the latest intra frame decoded. An encoder that chooses its
 /// references among the last `CACHED_STATES` frames and the latest intra frame (as ours
@@ -85,24 +41,24 @@ struct State {
 #[derive(Clone, Default)]
 struct StateCache {
     /// Oldest first; the last entry is the frame decoded last.
-    recent: Vec<(u32, State)>,
-    intra: Option<(u32, State)>,
+    recent: Vec<(u32, FrameState)>,
+    intra: Option<(u32, FrameState)>,
 }
 
 /// Decoded frames whose states the decoder keeps besides the latest intra frame's.
 pub const CACHED_STATES: usize = 8;
 
 impl StateCache {
-    fn get(&self, frame: u32) -> Option<&State> {
+    fn get(&self, frame: u32) -> Option<&FrameState> {
         let recent = self.recent.iter().rev().find(|(f, _)| *f == frame);
         recent.or(self.intra.as_ref().filter(|(f, _)| *f == frame)).map(|(_, s)| s)
     }
 
-    fn last(&self) -> Option<&(u32, State)> {
+    fn last(&self) -> Option<&(u32, FrameState)> {
         self.recent.last()
     }
 
-    fn insert(&mut self, frame: u32, state: State, intra: bool) {
+    fn insert(&mut self, frame: u32, state: FrameState, intra: bool) {
         self.recent.retain(|(f, _)| *f != frame);
         if intra {
             self.intra = Some((frame, state.clone()));
@@ -194,7 +150,7 @@ impl Decoder {
     /// Type, reference, QP and sizes of frame `index`.
     pub fn frame_info(&self, index: u32) -> Result<FrameInfo, DecodeError> {
         let unit = self.unit(index)?;
-        let p = read_payload(&unit, index)?;
+        let (p, _) = Payload::read(&unit, index)?;
         Ok(FrameInfo {
             frame_type: unit.frame_type,
             reference: (unit.frame_type == FrameType::Predicted).then(|| index - p.reference_distance),
@@ -228,7 +184,7 @@ impl Decoder {
             if unit.frame_type == FrameType::Intra {
                 break;
             }
-            chain.push(f - read_payload(&unit, f)?.reference_distance);
+            chain.push(f - Payload::read(&unit, f)?.0.reference_distance);
         }
         for k in (1..chain.len()).rev() {
             if self.cache.get(chain[k]).is_none() {
@@ -238,8 +194,7 @@ impl Decoder {
             }
         }
         let (state, sub, qp) = self.decode_state(index, chain.get(1).and_then(|&r| self.cache.get(r)))?;
-        let frames = displace::local_frames(&sub.positions, &sub.faces);
-        let mesh = reconstruct(&self.header, &sub, &frames, &state.coefficients, qp);
+        let mesh = FrameModel::new(&self.header, qp, sub).reconstruct(&state.coefficients);
         let intra = self.unit(index)?.frame_type == FrameType::Intra;
         self.cache.insert(index, state, intra);
         Ok(mesh)
@@ -261,7 +216,7 @@ impl Decoder {
     /// [`base_in_world_units`] gives them, and faces) of the frame decoded last: the texture
     /// atlas of an intra frame is coded on it. None before the first decode.
     pub fn last_base(&self) -> Option<(u32, Mesh)> {
-        self.cache.last().map(|(i, s)| (*i, Mesh::new(base_in_world_units(&self.header, &s.positions), s.faces.clone())))
+        self.cache.last().map(|(i, s)| (*i, Mesh::new(base_in_world_units(&self.header, &s.base), s.faces.clone())))
     }
 
     fn slot(&self, index: u32) -> Result<&FrameSlot, DecodeError> {
@@ -279,37 +234,37 @@ impl Decoder {
 
     /// Decodes frame `f`'s base mesh and coefficients (a predicted frame on `reference`);
     /// also returns its subdivided base mesh and QP.
-    fn decode_state(&self, f: u32, reference: Option<&State>) -> Result<(State, Subdivision, i32), DecodeError> {
+    fn decode_state(&self, f: u32, reference: Option<&FrameState>) -> Result<(FrameState, Subdivision, i32), DecodeError> {
         let unit = self.unit(f)?;
-        let p = read_payload(&unit, f)?;
+        let (p, at) = Payload::read(&unit, f)?;
         let h = &self.header;
         let error = |offset: u64, reason: &str| DecodeError::new(Some(f), offset, reason);
         let (positions, faces) = match (unit.frame_type, reference) {
-            (FrameType::Intra, _) => basecoder::decode_base(p.base, h.base_bits)
-                .map_err(|e| DecodeError::new(Some(f), p.base_offset, format!("base mesh: {e}")))?,
+            (FrameType::Intra, _) => decode_base(p.base, h.base_bits)
+                .map_err(|e| DecodeError::new(Some(f), at.base, format!("base mesh: {e}")))?,
             (FrameType::Predicted, Some(r)) => {
                 let mut dec = ec::Decoder::new(p.base);
-                let positions = motion::decode_motion(&mut dec, &r.positions, &r.faces, h.base_bits)
-                    .ok_or_else(|| error(p.base_offset, "base mesh motion is truncated or corrupt"))?;
+                let positions = motion::decode_motion(&mut dec, &r.base, &r.faces, h.base_bits)
+                    .ok_or_else(|| error(at.base, "base mesh motion is truncated or corrupt"))?;
                 (positions, r.faces.clone())
             }
-            (FrameType::Predicted, None) => return Err(error(p.base_offset, "predicted frame without its reference")),
+            (FrameType::Predicted, None) => return Err(error(at.base, "predicted frame without its reference")),
         };
         let too_big = faces.len().saturating_mul(1usize << (2 * h.subdiv_iterations())) > face_allowance(unit.payload.len());
         if faces.is_empty() || too_big {
             let reason = format!("base mesh of {} faces cannot be subdivided {} times", faces.len(), h.subdiv_iterations());
-            return Err(error(p.base_offset, &reason));
+            return Err(error(at.base, &reason));
         }
-        let sub = subdivide(&base_in_grid_units(h, &positions), &faces, &h.schemes[..self.lod as usize]);
+        let sub = subdivided_base(h, &positions, &faces, self.lod as usize);
         let mut dec = ec::Decoder::new(p.coefficients);
         let mut coefficients = coefcoder::decode(&mut dec, h.components as usize, &sub)
-            .ok_or_else(|| error(p.coefficients_offset, "displacement data is truncated or corrupt"))?;
+            .ok_or_else(|| error(at.coefficients, "displacement data is truncated or corrupt"))?;
         if p.coefficients_predicted {
             let r = reference.expect("predicted frames have a reference here");
             coefficients = add_coefficients(&coefficients, &r.coefficients)
-                .ok_or_else(|| error(p.coefficients_offset, "predicted displacements do not match their reference"))?;
+                .ok_or_else(|| error(at.coefficients, "predicted displacements do not match their reference"))?;
         }
-        Ok((State { positions, faces, coefficients }, sub, p.qp))
+        Ok((FrameState { base: positions, faces, coefficients }, sub, p.qp))
     }
 }
 
@@ -319,83 +274,4 @@ fn add_coefficients(residual: &[i32], reference: &[i32]) -> Option<Vec<i32>> {
         return None;
     }
     residual.iter().zip(reference).map(|(a, b)| a.checked_add(*b)).collect()
-}
-
-/// Splits a frame payload into its fields, checking the reference distance and the QP.
-pub fn read_payload<'a>(unit: &Unit<'a>, frame: u32) -> Result<Payload<'a>, DecodeError> {
-    let mut r = Reader::new(unit.payload, unit.offset, Some(frame));
-    let reference_distance = match unit.frame_type {
-        FrameType::Intra => 0,
-        FrameType::Predicted => {
-            let d = r.u32("reference distance")?;
-            if d == 0 || d > frame {
-                return Err(r.error(format!("reference distance {d} does not name an earlier frame")));
-            }
-            d
-        }
-    };
-    let qp = r.i32("QP")?;
-    if !quantize::QP_RANGE.contains(&qp) {
-        return Err(r.error(format!("QP {qp} out of range")));
-    }
-    let (base, base_offset) = r.block("base mesh")?;
-    let coefficients_predicted = match unit.frame_type {
-        FrameType::Intra => false,
-        FrameType::Predicted => match r.u8("coefficient mode")? {
-            0 => false,
-            1 => true,
-            m => return Err(r.error(format!("unknown coefficient mode {m}"))),
-        },
-    };
-    let (coefficients, coefficients_offset) = r.block("displacements")?;
-    if r.remaining() != 0 {
-        return Err(r.error("unexpected bytes at the end of the frame"));
-    }
-    Ok(Payload { reference_distance, qp, base, base_offset, coefficients_predicted, coefficients, coefficients_offset })
-}
-
-/// Base mesh positions on the base mesh grid, in units of the full-resolution grid.
-pub fn base_in_grid_units(h: &SequenceHeader, positions: &[[u32; 3]]) -> Vec<[f64; 3]> {
-    let base_grid = h.grid.coarser(h.base_bits);
-    positions.iter().map(|q| base_grid.to_world(q.map(|c| c as f64))).collect()
-}
-
-/// Base mesh positions on the base mesh grid, in the input's units: the base mesh that the
-/// encoder reports and the decoder's [`Decoder::last_base`] gives, bit for bit the same.
-pub fn base_in_world_units(h: &SequenceHeader, positions: &[[u32; 3]]) -> Vec<[f64; 3]> {
-    base_in_grid_units(h, positions).into_iter().map(|p| h.grid.to_world(p)).collect()
-}
-
-/// Subdivision of the decoded base mesh (integer positions on the base mesh grid).
-pub fn subdivided_base(h: &SequenceHeader, positions: &[[u32; 3]], faces: &[[u32; 3]]) -> Subdivision {
-    subdivide(&base_in_grid_units(h, positions), faces, &h.schemes)
-}
-
-/// The quantization scale of every vertex of `sub`: its level's scale, times its
-/// adaptive weight when the stream uses adaptive quantization.
-pub fn vertex_scales(h: &SequenceHeader, qp: i32, sub: &Subdivision) -> Vec<f64> {
-    let scales = quantize::lod_scales(qp, h.grid.bits, sub.lod_count());
-    let weights = quantize::vertex_weights(sub.positions.len(), &sub.faces, h.aq.as_ref());
-    weights.iter().enumerate().map(|(v, w)| w * quantize::scale_of(v, &sub.lod_offsets, &scales)).collect()
-}
-
-/// Positions of the decoded frame: dequantize, inverse-transform, apply the displacements
-/// in the local frames, map back to the input's units.
-pub fn reconstruct(h: &SequenceHeader, sub: &Subdivision, frames: &[[[f64; 3]; 3]], q: &[i32], qp: i32) -> Mesh {
-    let comps = h.components as usize;
-    let offset = h.aq.map_or(0.0, |a| a.delta);
-    let scales = vertex_scales(h, qp, sub);
-    let mut local: Vec<[f64; 3]> = scales
-        .iter()
-        .enumerate()
-        .map(|(v, &s)| std::array::from_fn(|k| if k < comps { quantize::dequantize_shifted(q[v * comps + k], s, offset) } else { 0.0 }))
-        .collect();
-    transform::inverse(&mut local, sub, &h.lifting);
-    let world = displace::to_world(&local, frames);
-    let positions = sub.positions.iter().zip(&world).map(|(p, d)| to_world(&h.grid, *p, *d)).collect();
-    Mesh::new(positions, sub.faces.clone())
-}
-
-fn to_world(grid: &Grid, p: [f64; 3], d: [f64; 3]) -> [f64; 3] {
-    grid.to_world([p[0] + d[0], p[1] + d[1], p[2] + d[2]])
 }

@@ -5,65 +5,28 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use crate::inter::anchor::{self, AnchorParams, AnchorStages, ReferenceBase, Rigid};
-use crate::base::coder as basecoder;
-use crate::stream::bitstream::{self, FrameType, SequenceHeader, Writer};
-use crate::geom::bvh::Bvh;
-use crate::residual::coefcoder;
+use crate::base::coder::{decode_base, encode_base};
 use crate::base::decimate::decimate;
+use crate::base::refit::refit_base;
 use crate::decoder;
-use crate::residual::displace;
-use crate::stream::ec;
 use crate::error::InputError;
+use crate::geom::bvh::Bvh;
 use crate::geom::grid::{Grid, BITS_RANGE};
 use crate::geom::limits;
 use crate::geom::mesh::{cross, norm, sub, Mesh};
-use crate::inter::motion;
-use crate::residual::quantize::{self, AqParams};
-use crate::base::refit::refit_base;
-use crate::residual::subdivide::{SchemeChoice, Subdivision};
-use crate::inter::tracking::{self, Bindings};
-use crate::residual::transform;
 use crate::geom::weld::weld;
-
-/// How predicted frames find their base mesh (the paper's ablation switches).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum InterMode {
-    /// Predict only frames whose input has the reference input's connectivity (the MPEG
-    /// test model's behaviour); every topology change forces an intra frame.
-    None,
-    /// Also predict other frames, through an anchor mesh from nearest-neighbour matching.
-    Nns,
-    /// ... with motion estimation before the matching.
-    NnsMe,
-    /// ... and the paper's QEM refinement of the matches (the paper's full method).
-    NnsMeQem,
-    /// ... with our projection of the motion-predicted points instead of the QEM stage.
-    NnsMeProj,
-}
-
-impl InterMode {
-    pub const NAMES: [&'static str; 5] = ["none", "nns", "nns+me", "nns+me+qem", "nns+me+proj"];
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        let modes = [Self::None, Self::Nns, Self::NnsMe, Self::NnsMeQem, Self::NnsMeProj];
-        Self::NAMES.iter().position(|&n| n == name).map(|i| modes[i])
-    }
-
-    pub fn name(self) -> &'static str {
-        Self::NAMES[self as usize]
-    }
-
-    fn anchor_stages(self) -> Option<AnchorStages> {
-        match self {
-            Self::None => None,
-            Self::Nns => Some(AnchorStages::Nns),
-            Self::NnsMe => Some(AnchorStages::NnsMe),
-            Self::NnsMeQem => Some(AnchorStages::NnsMeQem),
-            Self::NnsMeProj => Some(AnchorStages::NnsMeProj),
-        }
-    }
-}
+use crate::inter::anchor::{self, AnchorParams, AnchorStages, ReferenceBase, Rigid};
+use crate::inter::motion;
+use crate::inter::tracking::{self, Bindings};
+use crate::model::{base_in_grid_units, base_in_world_units, face_allowance, subdivided_base, FrameModel, FrameState};
+use crate::residual::coefcoder;
+use crate::residual::displace;
+use crate::residual::quantize::{self, AqParams};
+use crate::residual::subdivide::SchemeChoice;
+use crate::residual::transform;
+use crate::stream::bitstream::{self, FrameType, SequenceHeader};
+use crate::stream::ec;
+use crate::stream::payload::Payload;
 
 /// The lifting transform's update step (see `transform::Lifting`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -115,7 +78,11 @@ pub struct EncoderConfig {
     pub normal_only: bool,
     /// Frames per group: every `intra_period`-th frame is intra; 1 makes every frame intra.
     pub intra_period: u32,
-    pub inter: InterMode,
+    /// How predicted frames find their base mesh when the input's connectivity changed: the
+    /// anchor mesh built by these stages, or `None` to predict only frames whose input has
+    /// the reference input's connectivity (the MPEG test model's behaviour; every topology
+    /// change then forces an intra frame).
+    pub inter: Option<AnchorStages>,
     /// Adaptive displacement quantization, or `None` for one scale per level.
     pub aq: Option<AqParams>,
     /// The exchange rate of the intra/inter decision, in dB of PSNR per doubling of the
@@ -151,7 +118,7 @@ impl Default for EncoderConfig {
             base_bits: 9,
             normal_only: true,
             intra_period: 32,
-            inter: InterMode::NnsMeProj,
+            inter: Some(AnchorStages::NnsMeProj),
             aq: Some(AqParams::default()),
             rd_slope_db: 4.0,
             refit: true,
@@ -272,11 +239,9 @@ pub struct FrameStats {
 struct Reference {
     /// Input in grid units.
     input: Mesh,
-    /// Base mesh positions on the base grid, and its faces.
-    base: Vec<[u32; 3]>,
-    faces: Vec<[u32; 3]>,
-    /// Quantized displacement coefficients, which a predicted frame may code its own against.
-    coefficients: Vec<i32>,
+    /// Its base mesh and quantized coefficients, which a predicted frame may code its own
+    /// against.
+    state: FrameState,
     /// How the base was moved to this frame, when it was predicted.
     motion: Option<Motion>,
     /// Index of `input`'s faces.
@@ -307,12 +272,18 @@ struct Chosen {
 struct Candidate {
     frame_type: FrameType,
     payload: Vec<u8>,
-    base: Vec<[u32; 3]>,
-    faces: Vec<[u32; 3]>,
     base_bytes: usize,
     displacement_bytes: usize,
-    coefficients: Vec<i32>,
+    state: FrameState,
     reconstruction: Mesh,
+}
+
+/// The payload fields of a candidate that come before its displacements.
+struct Head {
+    frame_type: FrameType,
+    reference_distance: u32,
+    /// The base mesh block (intra) or the motion block (predicted).
+    base_block: Vec<u8>,
 }
 
 /// Encodes the frames of one sequence in order, predicting from earlier frames of the group.
@@ -391,8 +362,8 @@ impl SequenceEncoder {
             bytes: unit.len(),
             base_bytes: c.base_bytes,
             displacement_bytes: c.displacement_bytes,
-            base_vertices: c.base.len(),
-            base_faces: c.faces.len(),
+            base_vertices: c.state.base.len(),
+            base_faces: c.state.faces.len(),
             output_vertices: c.reconstruction.positions.len(),
             output_faces: c.reconstruction.faces.len(),
             same_topology,
@@ -400,9 +371,9 @@ impl SequenceEncoder {
             anchor_seconds,
             seconds: start.elapsed().as_secs_f64(),
         };
-        let base = Mesh::new(decoder::base_in_world_units(&self.header, &c.base), c.faces.clone());
+        let base = Mesh::new(base_in_world_units(&self.header, &c.state.base), c.state.faces.clone());
         let intra = c.frame_type == FrameType::Intra;
-        let reference = Reference { input, base: c.base, faces: c.faces, coefficients: c.coefficients, motion: chosen.motion, surface: target };
+        let reference = Reference { input, state: c.state, motion: chosen.motion, surface: target };
         self.keep_reference(Stored { frame: self.frame, intra, reference });
         self.frame += 1;
         Ok(EncodedFrame { unit, reconstruction: c.reconstruction, base, stats })
@@ -458,15 +429,15 @@ impl SequenceEncoder {
     /// The reference base mesh moved onto the current frame (grid units), if it can be,
     /// and how it was moved, which the next frame reuses if this one is predicted from it.
     fn anchor_positions(&self, r: &Reference, input: &Mesh, target: &Bvh) -> Option<(Vec<[f64; 3]>, Motion)> {
-        let reference = Mesh::new(decoder::base_in_grid_units(&self.header, &r.base), r.faces.clone());
+        let reference = Mesh::new(base_in_grid_units(&self.header, &r.state.base), r.state.faces.clone());
         let (moved, motion) = if tracking::same_connectivity(&r.input, input) {
             let bindings = match &r.motion {
                 Some(Motion::Tracked(b)) => b.clone(),
-                _ => tracking::bind(&reference.positions, &r.input),
+                _ => tracking::bind(&reference.positions, &r.surface),
             };
             (tracking::bound_positions(&bindings, input, &reference.positions), Motion::Tracked(bindings))
         } else {
-            let stages = self.config.inter.anchor_stages()?;
+            let stages = self.config.inter?;
             let params = AnchorParams { stages, rigid_align: self.config.rigid_align, repair_folds: self.config.fold_repair };
             let motions = match &r.motion {
                 Some(Motion::Anchor(m)) => m.as_deref(),
@@ -486,86 +457,90 @@ impl SequenceEncoder {
     /// (horse_gallop, QP 22-34: D1 BD-rate against all-intra -28.6 -> -30.9 %). The next
     /// frame starts again from the bindings, not from the refitted places.
     fn predicted_base(&self, r: &Reference, moved: Vec<[f64; 3]>, target: &Bvh) -> Vec<[u32; 3]> {
-        let moved = if self.config.refit { refit_base(&Mesh::new(moved, r.faces.clone()), &self.header.schemes, target) } else { moved };
+        let moved = if self.config.refit { refit_base(&Mesh::new(moved, r.state.faces.clone()), &self.header.schemes, target) } else { moved };
         let base_grid = self.header.grid.coarser(self.header.base_bits);
         moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect()
     }
     fn intra(&self, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
         let h = &self.header;
-        let base_bytes = base_mesh_bytes(h, &self.config, &input.positions, &input.faces, target)?;
-        let (base, faces) = basecoder::decode_base(&base_bytes, h.base_bits)
-            .map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
-        let mut w = Writer::default();
-        w.i32(self.config.qp);
-        w.block(&base_bytes);
-        self.finish_candidate(FrameType::Intra, w, base_bytes.len(), base, faces, target, None)
+        let base_block = base_mesh_bytes(h, &self.config, &input.positions, &input.faces, target)?;
+        let (base, faces) =
+            decode_base(&base_block, h.base_bits).map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
+        let head = Head { frame_type: FrameType::Intra, reference_distance: 0, base_block };
+        self.finish_candidate(head, base, faces, target, None)
     }
 
     /// The frame predicted from `r`, `distance` frames back, with its base moved to `anchor`.
     fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], target: &Bvh) -> Result<Candidate, InputError> {
         let mut enc = ec::Encoder::new();
-        motion::encode_motion(&mut enc, &r.base, anchor, &r.faces);
-        let motion_bytes = enc.finish();
-        let mut w = Writer::default();
-        w.u32(distance);
-        w.i32(self.config.qp);
-        w.block(&motion_bytes);
-        self.finish_candidate(FrameType::Predicted, w, motion_bytes.len(), anchor.to_vec(), r.faces.clone(), target, Some(&r.coefficients))
+        motion::encode_motion(&mut enc, &r.state.base, anchor, &r.state.faces);
+        let head = Head { frame_type: FrameType::Predicted, reference_distance: distance, base_block: enc.finish() };
+        self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some(&r.state.coefficients))
     }
 
     /// Fits, transforms, quantizes and codes the displacements of the base mesh
-    /// `(base, faces)` towards `target`, and appends them to the payload `w`. A predicted
-    /// frame passes its reference's coefficients: they correspond vertex for vertex, and the
-    /// coefficients are coded as (rounded) differences from them when that is smaller (mode
-    /// byte 1).
-    #[allow(clippy::too_many_arguments)]
+    /// `(base, faces)` towards `target`, and completes the payload that `head` starts. A
+    /// predicted frame passes its reference's coefficients: they correspond vertex for
+    /// vertex, and the coefficients are coded as (rounded) differences from them when that
+    /// is smaller (coefficient mode 1).
     fn finish_candidate(
         &self,
-        frame_type: FrameType,
-        mut w: Writer,
-        base_bytes: usize,
+        head: Head,
         base: Vec<[u32; 3]>,
         faces: Vec<[u32; 3]>,
         target: &Bvh,
         reference_coefficients: Option<&[i32]>,
     ) -> Result<Candidate, InputError> {
         let (h, qp) = (&self.header, self.config.qp);
-        let sub = decoder::subdivided_base(h, &base, &faces);
-        let frames = displace::local_frames(&sub.positions, &sub.faces);
+        let model = FrameModel::new(h, qp, subdivided_base(h, &base, &faces, h.schemes.len()));
+        let (sub, frames) = (&model.sub, &model.frames);
         let world = if h.components == 1 {
-            displace::fit_normal_displacements(&sub.positions, &sub.faces, &frames, target, &displace::RefineParams::default())
+            displace::fit_normal_displacements(&sub.positions, &sub.faces, frames, target, &displace::RefineParams::default())
         } else {
-            displace::fit_displacements(&sub.positions, &sub.faces, &frames, target, false)
+            displace::fit_displacements(&sub.positions, &sub.faces, frames, target, false)
         };
-        let steps = coefficient_steps(h, qp, &sub, &displace::to_local(&world, &frames));
+        let steps = model.coefficient_steps(&displace::to_local(&world, frames));
         let mut q: Vec<i32> = steps.iter().map(|&x| quantize::round_dead_zone(x, quantize::ROUNDING_BIAS)).collect();
         let coded = |values: &[i32]| {
             let mut enc = ec::Encoder::new();
-            coefcoder::encode(&mut enc, values, h.components as usize, &sub);
+            coefcoder::encode(&mut enc, values, h.components as usize, sub);
             enc.finish()
         };
-        let mut coef_bytes = coded(&q);
+        let mut coefficient_block = coded(&q);
+        let mut coefficients_predicted = false;
         if let Some(r) = reference_coefficients {
             let residual = differences_from(&steps, r);
             let predicted = coded(&residual);
-            let use_prediction = predicted.len() < coef_bytes.len();
-            w.u8(use_prediction as u8);
-            if use_prediction {
-                coef_bytes = predicted;
+            if predicted.len() < coefficient_block.len() {
+                coefficients_predicted = true;
+                coefficient_block = predicted;
                 q = residual.iter().zip(r).map(|(d, b)| d + b).collect();
             }
         }
-        let reconstruction = decoder::reconstruct(h, &sub, &frames, &q, qp);
-        w.block(&coef_bytes);
-        if reconstruction.faces.len() > decoder::face_allowance(w.bytes.len()) {
+        let reconstruction = model.reconstruct(&q);
+        let payload = Payload {
+            reference_distance: head.reference_distance,
+            qp,
+            base: &head.base_block,
+            coefficients_predicted,
+            coefficients: &coefficient_block,
+        }
+        .to_bytes(head.frame_type);
+        if reconstruction.faces.len() > face_allowance(payload.len()) {
             return Err(InputError(format!(
                 "{} output faces from a {}-byte frame exceed what a decoder accepts; use fewer subdivision iterations",
                 reconstruction.faces.len(),
-                w.bytes.len()
+                payload.len()
             )));
         }
-        let displacement_bytes = coef_bytes.len();
-        Ok(Candidate { frame_type, payload: w.bytes, base, faces, base_bytes, displacement_bytes, coefficients: q, reconstruction })
+        Ok(Candidate {
+            frame_type: head.frame_type,
+            payload,
+            base_bytes: head.base_block.len(),
+            displacement_bytes: coefficient_block.len(),
+            state: FrameState { base, faces, coefficients: q },
+            reconstruction,
+        })
     }
 
     /// The candidate to keep, and the bytes of the other one if it was coded (else 0).
@@ -665,7 +640,7 @@ fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], 
     let refitted = if cfg.refit { refit_base(&base, &h.schemes, surface) } else { base.positions };
     let base_grid = h.grid.coarser(h.base_bits);
     let positions: Vec<[u32; 3]> = refitted.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect();
-    Ok(basecoder::encode_base(&positions, &base.faces, h.base_bits))
+    Ok(encode_base(&positions, &base.faces, h.base_bits))
 }
 
 /// The most base faces a decimation to `target` faces may leave before the input is
@@ -681,22 +656,6 @@ pub fn max_base_faces(target: usize) -> usize {
 /// where rounding it first could leave a difference of one either way.
 fn differences_from(steps: &[f64], reference: &[i32]) -> Vec<i32> {
     steps.iter().zip(reference).map(|(&x, &r)| quantize::round_beyond_dead_zone(x - r as f64, quantize::PREDICTED_DEAD_ZONE)).collect()
-}
-
-/// Forward lifting of the local displacement components, scaled per level (and, with AQ,
-/// per vertex) into quantization steps and shifted by AQ's lattice offset: the values the
-/// quantizer rounds, `comps` per vertex.
-fn coefficient_steps(h: &SequenceHeader, qp: i32, sub: &Subdivision, local: &[[f64; 3]]) -> Vec<f64> {
-    let comps = h.components as usize;
-    let mut signal = local.to_vec();
-    transform::forward(&mut signal, sub, &h.lifting);
-    let scales = decoder::vertex_scales(h, qp, sub);
-    let offset = h.aq.map_or(0.0, |a| a.delta);
-    let mut x = Vec::with_capacity(signal.len() * comps);
-    for (c, &s) in signal.iter().zip(&scales) {
-        x.extend((0..comps).map(|k| quantize::steps(c[k], s, offset)));
-    }
-    x
 }
 
 #[cfg(test)]

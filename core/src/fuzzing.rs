@@ -11,7 +11,7 @@
 use crate::base::coder;
 use crate::stream::bitstream;
 use crate::residual::coefcoder;
-use crate::decoder::{self, Decoder};
+use crate::decoder::Decoder;
 use crate::stream::ec;
 use crate::inter::motion;
 use crate::residual::subdivide::{subdivide, Scheme};
@@ -48,7 +48,7 @@ fn decode_every_frame(mut d: Decoder) {
         let _ = d.frame_info(i);
         let _ = d.texture_payload(i);
         if let Ok(m) = d.decode_frame(i) {
-            assert!(m.faces.len() <= decoder::MAX_OUTPUT_FACES);
+            assert!(m.faces.len() <= crate::model::MAX_OUTPUT_FACES);
             assert!(m.faces.iter().flatten().all(|&v| (v as usize) < m.positions.len()), "frame {i}: face index out of range");
         }
     }

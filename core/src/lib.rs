@@ -6,8 +6,8 @@
 //! tracking or the anchor mesh, then motion coding) → [`residual`] (subdivision, fitting and
 //! local frames, lifting wavelet, quantization, coefficient coding) → [`stream`] (entropy
 //! coder and container); [`texture`] codes the atlas and resamples the texture. The
-//! [`decoder`] runs the inverse path, and the [`encoder`] reconstructs each frame with the
-//! decoder's own functions so that both agree bit for bit. [`eval`] (feature `eval`) measures
+//! [`decoder`] runs the inverse path; [`model`] is the reconstruction both sides share, so
+//! the [`encoder`]'s reconstruction and the decoder's output agree bit for bit. [`eval`] (feature `eval`) measures
 //! D1/D2 PSNR as the MPEG common test conditions do and renders snapshots.
 
 pub mod error;
@@ -17,6 +17,7 @@ pub mod base;
 pub mod inter;
 pub mod residual;
 pub mod texture;
+pub mod model;
 pub mod encoder;
 pub mod decoder;
 #[cfg(feature = "eval")]

@@ -2,7 +2,7 @@
 //! never produce more than the bounded output.
 
 use dynmesh::stream::bitstream::{self, FrameType};
-use dynmesh::decoder::{self, Decoder};
+use dynmesh::decoder::Decoder;
 use dynmesh::encoder::{EncoderConfig, SequenceEncoder};
 use dynmesh::geom::mesh::Mesh;
 
@@ -92,7 +92,7 @@ fn payload_flips_behind_a_valid_crc_never_panic() {
             continue;
         }
         match decode_all(&d) {
-            Ok(v) => assert!(v <= decoder::MAX_OUTPUT_FACES),
+            Ok(v) => assert!(v <= dynmesh::model::MAX_OUTPUT_FACES),
             Err(e) => {
                 errors += 1;
                 assert!(e.to_string().contains("byte offset"));

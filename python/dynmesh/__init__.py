@@ -18,6 +18,7 @@ _HOMES = {
     "encode_frames": "api", "info": "api", "metrics": "api",
     "MeshError": "io", "read_mesh": "io", "write_mesh": "io",
     "Mesh": "mesh",
+    "FrameType": "defaults",
 }
 
 __all__ = sorted(_HOMES)

@@ -11,7 +11,7 @@ import numpy as np
 
 from . import _core
 from . import texture as _texture
-from .defaults import ENCODER
+from .defaults import ENCODER, FrameType
 from .io import _atomic_write, read_image
 from .mesh import Mesh
 
@@ -118,7 +118,7 @@ def encode_frames(
     same byte for byte (see ``dynmesh.parallel``), and ``on_frame`` is then called for a
     group's frames when the group is done, in order. The local processes are spawned: a
     script that calls this needs the ``if __name__ == "__main__":`` guard.
-    ``on_frame(index, stats)`` is called after each frame; ``stats["type"]`` is "I" or "P".
+    ``on_frame(index, stats)`` is called after each frame; ``stats["type"]`` is a ``FrameType``.
     Reconstructions of a textured stream carry their UVs and decoded texture image.
     Raises ValueError for an invalid mesh or option, naming the frame.
     """
@@ -188,6 +188,7 @@ def encode_units(enc: _core.Encoder, tex: _texture.TextureEncoder | None, meshes
             raise ValueError(f"more than the {count} frames announced")
         try:
             unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
+            stats["type"] = FrameType(stats["type"])
             closed = tex and tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, _image_of(m))
         except ValueError as e:
             raise ValueError(f"frame {i}: {e}") from None
@@ -276,7 +277,7 @@ def info(data: bytes) -> dict:
     frames = []
     for i in range(dec.frame_count):
         if i in lost:
-            frames.append({"type": "?", "reference": None, "bytes": 0, "qp": 0, "base_bytes": 0,
+            frames.append({"type": FrameType.UNKNOWN, "reference": None, "bytes": 0, "qp": 0, "base_bytes": 0,
                            "displacement_bytes": 0, "texture_bytes": 0, "damaged": True})
             continue
         try:
@@ -284,7 +285,7 @@ def info(data: bytes) -> dict:
             t = dec.texture_payload(i)
         except _core.DecodeError as e:
             raise DecodeError(*e.args) from None
-        frames.append({**f, "texture_bytes": 0 if t is None else len(t[0]), "damaged": False})
+        frames.append({**f, "type": FrameType(f["type"]), "texture_bytes": 0 if t is None else len(t[0]), "damaged": False})
     return {"bytes": len(data), "header": dec.header(), "frames": frames, "damaged": damaged}
 
 

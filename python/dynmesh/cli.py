@@ -10,7 +10,7 @@ from pathlib import Path
 
 # The API, numpy and the file readers are imported by the commands that use them:
 # `dynmesh decode` needs none of them, and importing them would cost it more than decoding.
-from .defaults import ENCODER, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS
+from .defaults import ENCODER, INTER_MODES, LIFTINGS, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS
 from .safety import StagedDirectory, mesh_inputs, refuse_inputs
 from .sequence import resolve_sequence
 
@@ -64,12 +64,10 @@ def _table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
 
 
 def _encoder_options(a) -> dict:
-    return dict(qp=a.qp, base_ratio=a.base_ratio, subdiv=a.subdiv, scheme=a.scheme, bits=a.bits,
-                base_bits=a.base_bits, normal_only=not a.all_components, intra_period=a.intra_period,
-                inter=a.inter, rd_slope=a.rd_slope, refit=a.refit, lifting=a.lifting, fold_repair=a.fold_repair, rigid_align=a.rigid_align,
-                references=a.references, intra_reference=a.intra_reference, aq=a.aq, aq_alpha=a.aq_alpha,
-                aq_delta=a.aq_delta, aq_h=a.aq_h, texture="auto" if a.texture is None else a.texture,
-                texture_size=a.texture_size, texture_qp=a.texture_qp, texture_codec=a.texture_codec)
+    """The encoder and texture options of a parsed ``encode`` command line: each flag is the
+    option's name with dashes (``--base-ratio`` sets ``base_ratio``)."""
+    options = {k: getattr(a, k) for k in (*ENCODER, *TEXTURE)}
+    return {**options, "texture": "auto" if a.texture is None else a.texture}
 
 
 def _scan_sequence(paths: list[Path], quiet: bool) -> tuple[np.ndarray, np.ndarray, list[Path], list[bool]]:
@@ -494,10 +492,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--bits", type=int, default=d["bits"], help=f"position bits over the sequence box (default {d['bits']})")
     p.add_argument("--base-bits", type=int, default=d["base_bits"],
                    help=f"base mesh position bits, at most --bits (default {d['base_bits']})")
-    p.add_argument("--all-components", action="store_true", help="code all three displacement components, not only the normal one")
+    p.add_argument("--all-components", dest="normal_only", action="store_false",
+                   help="code all three displacement components, not only the normal one")
     p.add_argument("--intra-period", type=int, default=d["intra_period"],
                    help=f"frames per group; each group starts with an intra frame, 1 = all intra (default {d['intra_period']})")
-    p.add_argument("--inter", choices=["none", "nns", "nns+me", "nns+me+qem", "nns+me+proj"], default=d["inter"],
+    p.add_argument("--inter", choices=INTER_MODES, default=d["inter"],
                    help="how predicted frames get their base mesh when the topology changes: none = never (intra); "
                         "the paper's stages: nns = nearest input vertex of each reference base vertex, "
                         "+me = searched from where the neighbours' motion predicts, "
@@ -521,7 +520,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--refit", action=argparse.BooleanOptionalAction, default=d["refit"],
                    help="least-squares refit of each base mesh (intra, and the anchor or tracked base of predicted frames) so that "
                         "its subdivision fits the input, before quantization (default: %(default)s)")
-    p.add_argument("--lifting", choices=["valence", "constant"], default=d["lifting"],
+    p.add_argument("--lifting", choices=LIFTINGS, default=d["lifting"],
                    help="update weights of the lifting transform: valence = the test model's per-level weights "
                         "divided by each parent's valence, constant = 1/8 at every level (default %(default)s)")
     p.add_argument("--aq", action=argparse.BooleanOptionalAction, default=d["aq"],

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import _core, atlas, video
-from .defaults import TEXTURE
+from .defaults import TEXTURE, FrameType
 from .mesh import Mesh
 
 #: Defaults of the texture options (``encode_frames`` takes them beside the geometry ones).
@@ -115,9 +115,9 @@ class TextureEncoder:
         self._group: _Group | None = None
         self._frame = 0
 
-    def add(self, frame_type: str, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> tuple[int, bytes] | None:
+    def add(self, frame_type: FrameType, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> tuple[int, bytes] | None:
         closed = None
-        if frame_type == "I" or self._group is None:
+        if frame_type == FrameType.INTRA or self._group is None:
             closed = self._close()
             data, uv_faces, uv = atlas.coded_atlas(base.positions, base.faces, self.size)
             uv, uv_faces = _core.subdivide_uv(uv, uv_faces, self.subdiv)

@@ -24,6 +24,8 @@ pub struct SurfacePoint {
     pub triangle: u32,
     /// Squared distance from the query point to `point`.
     pub dist2: f64,
+    /// Barycentric coordinates of `point` on the triangle's corners.
+    pub bary: [f64; 3],
 }
 
 /// Where a line `p + t d` crosses the surface.
@@ -158,9 +160,8 @@ impl Bvh {
     /// the closest triangle of a nearby query or of the previous round of an iteration is.
     pub fn closest_point_near(&self, q: [f64; 3], hint: u32) -> Option<SurfacePoint> {
         let start = self.triangle(hint).map(|tri| {
-            let point = closest_on_triangle(q, tri).0;
-            let d = sub(point, q);
-            SurfacePoint { point, triangle: hint, dist2: dot(d, d) }
+            let (point, dist2, bary) = closest_on_triangle(q, tri);
+            SurfacePoint { point, triangle: hint, dist2, bary }
         });
         self.closest_point_from(q, start)
     }
@@ -183,9 +184,8 @@ impl Bvh {
             let (link, count) = self.node(node);
             if count > 0 {
                 for k in link as usize..(link + count) as usize {
-                    let point = closest_on_triangle(q, self.tris[k]).0;
-                    let d = sub(point, q);
-                    let cand = SurfacePoint { point, triangle: self.ids[k], dist2: dot(d, d) };
+                    let (point, dist2, bary) = closest_on_triangle(q, self.tris[k]);
+                    let cand = SurfacePoint { point, triangle: self.ids[k], dist2, bary };
                     if better_point(&cand, best.as_ref()) {
                         best_d2 = cand.dist2;
                         best = Some(cand);

@@ -13,7 +13,7 @@
 use rayon::prelude::*;
 
 use crate::geom::bvh::Bvh;
-use crate::geom::mesh::{add, dot, interpolate, sub, Mesh};
+use crate::geom::mesh::{add, interpolate, sub, Mesh};
 
 /// True when `a` and `b` have the same vertex count and the same triangles in the same order.
 pub fn same_connectivity(a: &Mesh, b: &Mesh) -> bool {
@@ -32,15 +32,14 @@ pub struct Binding {
 /// One binding per point; `None` for a point that has nothing to bind to.
 pub type Bindings = Vec<Option<Binding>>;
 
-/// Binds each point of `base` to its closest point on `input`; `None` for every point when
-/// `input` has no triangles.
-pub fn bind(base: &[[f64; 3]], input: &Mesh) -> Bindings {
-    let bvh = Bvh::new(&input.positions, &input.faces);
+/// Binds each point of `base` to its closest point on the input surface that `surface`
+/// indexes (the encoder's index of the reference input); `None` for every point when the
+/// input has no triangles.
+pub fn bind(base: &[[f64; 3]], surface: &Bvh) -> Bindings {
     base.par_iter()
         .map(|&p| {
-            let hit = bvh.closest_point(p)?;
-            let [a, b, c] = input.faces[hit.triangle as usize].map(|v| input.positions[v as usize]);
-            Some(Binding { triangle: hit.triangle, weights: barycentric(hit.point, a, b, c), offset: sub(p, hit.point) })
+            let hit = surface.closest_point(p)?;
+            Some(Binding { triangle: hit.triangle, weights: hit.bary, offset: sub(p, hit.point) })
         })
         .collect()
 }
@@ -59,24 +58,13 @@ pub fn bound_positions(bindings: &[Option<Binding>], input: &Mesh, unbound: &[[f
         .collect()
 }
 
-/// Barycentric coordinates of `p` (assumed in the plane of `abc`); a degenerate triangle
-/// gives its first corner.
-fn barycentric(p: [f64; 3], a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> [f64; 3] {
-    let (v0, v1, v2) = (sub(b, a), sub(c, a), sub(p, a));
-    let (d00, d01, d11) = (dot(v0, v0), dot(v0, v1), dot(v1, v1));
-    let (d20, d21) = (dot(v2, v0), dot(v2, v1));
-    let den = d00 * d11 - d01 * d01;
-    if den.abs() <= f64::EPSILON * d00 * d11 || den == 0.0 {
-        return [1.0, 0.0, 0.0];
-    }
-    let v = (d11 * d20 - d01 * d21) / den;
-    let w = (d00 * d21 - d01 * d20) / den;
-    [1.0 - v - w, v, w]
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn index(m: &Mesh) -> Bvh {
+        Bvh::new(&m.positions, &m.faces)
+    }
 
     fn sheet() -> Mesh {
         let p = (0..5).flat_map(|y| (0..5).map(move |x| [x as f64, y as f64, 0.0])).collect();
@@ -99,7 +87,7 @@ mod tests {
             *p = [2.0 * p[0] + 1.0, p[1] - 3.0, 0.5 * p[0]];
         }
         let base = [[0.5, 0.5, 0.0], [3.25, 1.75, 0.0], [4.0, 4.0, 0.0]];
-        let moved = bound_positions(&bind(&base, &a), &b, &base);
+        let moved = bound_positions(&bind(&base, &index(&a)), &b, &base);
         for (q, m) in base.iter().zip(&moved) {
             let expect = [2.0 * q[0] + 1.0, q[1] - 3.0, 0.5 * q[0]];
             assert!((0..3).all(|k| (m[k] - expect[k]).abs() < 1e-9), "{m:?} vs {expect:?}");
@@ -112,7 +100,7 @@ mod tests {
         let mut b = a.clone();
         b.positions.iter_mut().for_each(|p| p[0] += 10.0);
         let p = [[1.5, 2.5, 0.75]];
-        let moved = bound_positions(&bind(&p, &a), &b, &p);
+        let moved = bound_positions(&bind(&p, &index(&a)), &b, &p);
         assert!((moved[0][0] - 11.5).abs() < 1e-9 && (moved[0][2] - 0.75).abs() < 1e-9);
     }
 
@@ -132,14 +120,14 @@ mod tests {
         };
         let (b, c) = (slid(&a), slid(&slid(&a)));
         let p = [[1.0, 1.0, 0.4]];
-        let bindings = bind(&p, &a);
+        let bindings = bind(&p, &index(&a));
         let at_b = bound_positions(&bindings, &b, &p);
         let at_c = bound_positions(&bindings, &c, &p);
         let near = |x: [f64; 3], y: [f64; 3]| (0..3).all(|k| (x[k] - y[k]).abs() < 1e-9);
         assert!(near(at_b[0], [2.0, 1.0, 0.4]) && near(at_c[0], [3.0, 1.0, 0.4]), "{at_b:?} {at_c:?}");
-        assert_eq!(bind(&at_b, &b)[0].map(|x| x.triangle), Some(1), "a fresh binding would jump");
+        assert_eq!(bind(&at_b, &index(&b))[0].map(|x| x.triangle), Some(1), "a fresh binding would jump");
         let empty = Mesh::default();
-        assert_eq!(bound_positions(&bind(&p, &empty), &empty, &p), p.to_vec());
+        assert_eq!(bound_positions(&bind(&p, &index(&empty)), &empty, &p), p.to_vec());
     }
 
     #[test]

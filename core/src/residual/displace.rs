@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use crate::geom::bvh::{closest_on_triangle, Bvh, SurfacePoint};
+use crate::geom::bvh::{Bvh, SurfacePoint};
 use crate::geom::mesh::{add, cross, dot, normalize, scale, sub, vertex_normals, Adjacency};
 
 /// A vertex's local frame, rows `[n, t, b]`: unit normal, tangent, bitangent.
@@ -148,7 +148,7 @@ impl FirstFit {
 
 /// Non-empty target: checked by the callers.
 fn closest_to(target: &Bvh, x: [f64; 3]) -> SurfacePoint {
-    target.closest_point(x).unwrap_or(SurfacePoint { point: x, triangle: 0, dist2: 0.0 })
+    target.closest_point(x).unwrap_or(SurfacePoint { point: x, triangle: 0, dist2: 0.0, bary: [1.0, 0.0, 0.0] })
 }
 
 /// The nearest crossing is trusted when `|s| <= ratio * c + slack`, i.e. when no surface
@@ -364,7 +364,7 @@ fn projection_steps(moved: &[[f64; 3]], faces: &[[u32; 3]], frames: &[Frame], ta
         .enumerate()
         .map(|(i, hint)| {
             let (p, n) = (moved[i], frames[i][0]);
-            let c = target.closest_point_near(p, *hint).unwrap_or(SurfacePoint { point: p, triangle: *hint, dist2: 0.0 });
+            let c = target.closest_point_near(p, *hint).unwrap_or(SurfacePoint { point: p, triangle: *hint, dist2: 0.0, bary: [1.0, 0.0, 0.0] });
             *hint = c.triangle;
             let d = sub(c.point, p);
             let m = if normals[i] == [0.0; 3] { n } else { normals[i] };
@@ -415,8 +415,7 @@ fn reverse_pulls(surface: &Bvh, faces: &[[u32; 3]], frames: &[Frame], samples: &
         .map(|(&q, hint)| {
             let c = surface.closest_point_near(q, *hint)?;
             *hint = c.triangle;
-            let tri = surface.triangle(c.triangle)?;
-            Some((c.triangle, sub(q, c.point), closest_on_triangle(c.point, tri).2))
+            Some((c.triangle, sub(q, c.point), c.bary))
         })
         .collect();
     let mut acc = vec![(0.0f64, 0.0f64); frames.len()];

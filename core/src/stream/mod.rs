@@ -5,4 +5,5 @@
 
 pub mod ec;
 pub mod bitstream;
+pub mod payload;
 pub mod resync;

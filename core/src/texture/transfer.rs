@@ -420,7 +420,7 @@ fn nearest_on_segment(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> (f64, f64) {
 mod tests {
     use super::*;
     use crate::geom::testmesh::{midpoint, Rng, Soup};
-    use crate::geom::bvh::{closest_on_triangle, Bvh};
+    use crate::geom::bvh::Bvh;
     use crate::geom::mesh::{scale, Mesh};
     use crate::texture::pad::pad;
 
@@ -699,8 +699,8 @@ mod tests {
                 let Some((key, b)) = best else { continue };
                 let corners = target.mesh.faces[key as u32 as usize].map(|v| target.mesh.positions[v as usize]);
                 let q = interpolate(corners, b);
-                let s = bvh.closest_point(q).unwrap().triangle;
-                let (_, _, bary) = closest_on_triangle(q, source.mesh.faces[s as usize].map(|v| source.mesh.positions[v as usize]));
+                let hit = bvh.closest_point(q).unwrap();
+                let (s, bary) = (hit.triangle, hit.bary);
                 let uv = source.uv_faces[s as usize].map(|i| source.uv[i as usize]);
                 let uv = [0, 1].map(|k| bary[0] * uv[0][k] + bary[1] * uv[1][k] + bary[2] * uv[2][k]);
                 out.texture.rgb[y * w + x] = tex.sample(uv).map(|c| c.round() as u8);

@@ -22,16 +22,33 @@ use coarse::NearestVertex;
 pub use folds::FoldStats;
 pub use rigid::Rigid;
 
+/// The stages that make the anchor mesh: the paper's ablation switches, and our variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum AnchorStages {
-    /// Nearest input vertex of each reference vertex.
+    /// Nearest input vertex of each reference vertex (the paper's NNS).
     Nns,
-    /// ... searched from the position its neighbours' motion predicts.
+    /// ... searched from the position its neighbours' motion predicts (+ME).
     NnsMe,
-    /// ... refined by the paper's QEM edge collapse around each match.
+    /// ... refined by the paper's QEM edge collapse around each match (+QEM: the paper's
+    /// full method).
     NnsMeQem,
-    /// ... with the motion-predicted point projected onto the input surface instead (ours).
+    /// ... with the motion-predicted point projected onto the input surface instead of the
+    /// QEM stage (ours, not in the paper).
     NnsMeProj,
+}
+
+impl AnchorStages {
+    /// The stages' names, as `--inter` takes them, in the order of the variants.
+    pub const NAMES: [&'static str; 4] = ["nns", "nns+me", "nns+me+qem", "nns+me+proj"];
+    const ALL: [Self; 4] = [Self::Nns, Self::NnsMe, Self::NnsMeQem, Self::NnsMeProj];
+
+    pub fn from_name(name: &str) -> Option<Self> {
+        Self::NAMES.iter().position(|&n| n == name).map(|i| Self::ALL[i])
+    }
+
+    pub fn name(self) -> &'static str {
+        Self::NAMES[self as usize]
+    }
 }
 
 #[derive(Debug, Clone)]
@@ -131,7 +148,7 @@ mod tests {
     #[test]
     fn every_stage_keeps_a_still_input_and_the_connectivity_size() {
         let m = sheet(6, [0.0; 3]);
-        for stages in [AnchorStages::Nns, AnchorStages::NnsMe, AnchorStages::NnsMeQem, AnchorStages::NnsMeProj] {
+        for stages in AnchorStages::ALL {
             assert_eq!(anchor(&m, &m, stages), m.positions, "{stages:?}");
         }
     }

@@ -1,0 +1,139 @@
+//! The encoder options as Python names them, listed once: [`OPTIONS`] gives each option's
+//! key, how its value is read from an [`EncoderConfig`] (the defaults that
+//! `dynmesh.defaults.ENCODER` and the command line show) and how a value sets it. The
+//! command line's flags are these keys with dashes.
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use pyo3::IntoPyObjectExt;
+
+use dynmesh::encoder::{EncoderConfig, LiftingChoice};
+use dynmesh::inter::anchor::AnchorStages;
+use dynmesh::residual::quantize::AqParams;
+use dynmesh::residual::subdivide::SchemeChoice;
+
+/// An encoder configuration being built from options; adaptive quantization's switch and
+/// parameters are separate options, so they are kept apart until the end.
+struct Settings {
+    config: EncoderConfig,
+    aq_on: bool,
+    aq: AqParams,
+}
+
+struct Opt {
+    key: &'static str,
+    get: fn(&Settings, Python<'_>) -> PyResult<PyObject>,
+    set: fn(&mut Settings, &Bound<'_, PyAny>) -> PyResult<()>,
+}
+
+/// An option that is one field, converted as it is.
+macro_rules! field {
+    ($key:literal, $($path:ident).+) => {
+        Opt {
+            key: $key,
+            get: |s, py| s.$($path).+.into_py_any(py),
+            set: |s, v| {
+                s.$($path).+ = v.extract()?;
+                Ok(())
+            },
+        }
+    };
+}
+
+/// The name `--inter` gives to predicting constant connectivity only (no anchor stages).
+const NO_ANCHOR: &str = "none";
+
+const OPTIONS: &[Opt] = &[
+    field!("qp", config.qp),
+    field!("base_ratio", config.base_ratio),
+    field!("subdiv", config.subdiv_iterations),
+    Opt {
+        key: "scheme",
+        get: |s, py| s.config.scheme.spec().into_py_any(py),
+        set: |s, v| {
+            s.config.scheme = SchemeChoice::parse(&v.extract::<String>()?).map_err(PyValueError::new_err)?;
+            Ok(())
+        },
+    },
+    field!("bits", config.bits),
+    field!("base_bits", config.base_bits),
+    field!("normal_only", config.normal_only),
+    field!("intra_period", config.intra_period),
+    Opt {
+        key: "inter",
+        get: |s, py| s.config.inter.map_or(NO_ANCHOR, AnchorStages::name).into_py_any(py),
+        set: |s, v| {
+            let name: String = v.extract()?;
+            s.config.inter = match name.as_str() {
+                NO_ANCHOR => None,
+                _ => Some(AnchorStages::from_name(&name).ok_or_else(|| {
+                    PyValueError::new_err(format!("unknown inter mode {name:?} (one of {})", inter_modes().join(", ")))
+                })?),
+            };
+            Ok(())
+        },
+    },
+    field!("rd_slope", config.rd_slope_db),
+    field!("refit", config.refit),
+    field!("fold_repair", config.fold_repair),
+    field!("rigid_align", config.rigid_align),
+    field!("references", config.references),
+    field!("intra_reference", config.intra_reference),
+    Opt {
+        key: "lifting",
+        get: |s, py| s.config.lifting.name().into_py_any(py),
+        set: |s, v| {
+            let name: String = v.extract()?;
+            s.config.lifting = LiftingChoice::from_name(&name).ok_or_else(|| {
+                PyValueError::new_err(format!("unknown lifting {name:?} (one of {})", LiftingChoice::NAMES.join(", ")))
+            })?;
+            Ok(())
+        },
+    },
+    field!("aq", aq_on),
+    field!("aq_alpha", aq.alpha),
+    field!("aq_delta", aq.delta),
+    field!("aq_h", aq.h),
+];
+
+/// The `inter` option's values: no anchor, then the anchor's stages.
+pub fn inter_modes() -> Vec<&'static str> {
+    std::iter::once(NO_ANCHOR).chain(AnchorStages::NAMES).collect()
+}
+
+/// The encoder configuration from a dict of options named as in [`default_options`]; the
+/// options not given keep their defaults. Errors on an unknown name or an invalid value.
+pub fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
+    let config = EncoderConfig::default();
+    let mut s = Settings { aq_on: config.aq.is_some(), aq: config.aq.unwrap_or_default(), config };
+    for (key, value) in options.iter() {
+        let key: String = key.extract()?;
+        let opt = OPTIONS.iter().find(|o| o.key == key);
+        let opt = opt.ok_or_else(|| PyValueError::new_err(format!("unknown encoder option {key:?}")))?;
+        (opt.set)(&mut s, &value)?;
+    }
+    s.config.aq = s.aq_on.then_some(s.aq);
+    s.config.validate().map_err(|e| PyValueError::new_err(e.0))?;
+    Ok(s.config)
+}
+
+/// The encoder's default options, by name, in the order of [`OPTIONS`].
+#[pyfunction]
+pub fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let config = EncoderConfig::default();
+    let s = Settings { aq_on: config.aq.is_some(), aq: config.aq.unwrap_or_default(), config };
+    let d = PyDict::new(py);
+    for o in OPTIONS {
+        d.set_item(o.key, (o.get)(&s, py)?)?;
+    }
+    Ok(d)
+}
+
+/// Registers the option functions and the names of the choice options.
+pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(default_options, m)?)?;
+    m.add("INTER_MODES", inter_modes())?;
+    m.add("LIFTINGS", LiftingChoice::NAMES.to_vec())?;
+    Ok(())
+}
