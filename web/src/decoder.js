@@ -9,14 +9,14 @@
 // `lod` (0 ..= subdivision iterations, default all) stops after that many subdivisions:
 // coefficients of finer levels are not read, and the frame is reconstructed without them.
 
-import { readHeader, readUnits, Reader, INTRA, PREDICTED } from './container.js';
-import { DecodeError } from './errors.js';
-import { RangeDecoder } from './ec.js';
-import { decodeBase } from './basecoder.js';
-import { decodeMotion } from './motion.js';
-import { decodeCoefficients } from './coefcoder.js';
-import { subdivide } from './subdivide.js';
-import { reconstruct } from './reconstruct.js';
+import { readHeader, readUnits, Reader, INTRA, PREDICTED } from './stream/bitstream.js';
+import { DecodeError } from './error.js';
+import { RangeDecoder } from './stream/ec.js';
+import { decodeBase } from './base/coder.js';
+import { decodeMotion } from './inter/motion.js';
+import { decodeCoefficients } from './residual/coefcoder.js';
+import { subdivide } from './residual/subdivide.js';
+import { reconstruct } from './model.js';
 
 export const MAX_OUTPUT_FACES = 2 ** 25;
 /** Decoded frames whose states are kept besides the latest intra frame's (`CACHED_STATES`). */

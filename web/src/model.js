@@ -5,9 +5,9 @@
 // Contract: `reconstruct` gives the Rust positions bit for bit. Every expression keeps the
 // Rust operation order (JS never fuses a multiply-add, and neither does Rust without
 // explicit `mul_add`, which the decoder does not use). The one libm call is `powf` in the
-// level scales, which `pow2` reproduces (Math.pow does not: see pow2.js).
+// level scales, which `pow2` reproduces (Math.pow does not: see residual/pow2.js).
 
-import { pow2 } from './pow2.js';
+import { pow2 } from './residual/pow2.js';
 
 /**
  * Quantization scale of each level of detail (`quantize::lod_scales`).
@@ -165,8 +165,8 @@ function frameToWorld(nx, ny, nz, c0, c1, c2, out, o) {
 
 /**
  * Positions of the decoded frame in the input's units.
- * @param {import('./container.js').Header} header
- * @param {import('./subdivide.js').Subdivision} sub
+ * @param {import('./stream/bitstream.js').Header} header
+ * @param {import('./residual/subdivide.js').Subdivision} sub
  * @param {Int32Array} q quantized coefficients, `header.components` per vertex
  * @param {number} qp
  * @returns {Float64Array}
