@@ -4,8 +4,9 @@ The page (``web/player/``) fetches the stream and decodes it in the browser with
 JavaScript decoder (``web/src/``); this module only serves those plain files and the stream
 bytes, so the player works from the installed package alone (the wheel carries the files as
 ``dynmesh/_web``; in a source checkout that folder holds symlinks to ``web/``). Routes: ``/`` redirects to the page,
-``/stream.dmsh`` is the stream, ``/info.json`` its name and frame rate, ``/player/*`` and
-``/src/*`` the files; nothing else is served (no directory listings, no paths outside).
+``/stream.dmsh`` is the stream, ``/info.json`` its name and frame rate, ``/player/...`` and
+``/src/...`` the files, at any depth; nothing else is served (no directory listings, no
+paths outside).
 """
 
 from __future__ import annotations
@@ -58,9 +59,13 @@ def make_server(stream: bytes, name: str, port: int = 0, fps: float = DEFAULT_FP
                 self._file(path)
 
         def _file(self, path: str) -> None:
+            # A file at any depth under src/ or player/ (the decoder's modules sit in folders),
+            # named without empty, "." or ".." steps, that resolves to inside that folder.
             parts = path.strip("/").split("/")
-            target = (root / "/".join(parts)).resolve() if len(parts) == 2 and parts[0] in ("src", "player") else None
-            if target is None or target.parent != (root / parts[0]).resolve() or not target.is_file():
+            target = None
+            if len(parts) >= 2 and parts[0] in ("src", "player") and not {"", ".", ".."} & set(parts):
+                target = (root / "/".join(parts)).resolve()
+            if target is None or not target.is_relative_to((root / parts[0]).resolve()) or not target.is_file():
                 self.send_error(404)
                 return
             self._send(target.read_bytes(), _TYPES.get(target.suffix, "application/octet-stream"))

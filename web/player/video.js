@@ -9,7 +9,7 @@
 // Decoding goes forward through a group's pictures; seeking back restarts the group.
 
 import { Decoder } from '../src/decoder.js';
-import { readTextureUnit } from '../src/texture.js';
+import { readTextureUnit } from '../src/texture/unit.js';
 
 const CACHE = 8;
 

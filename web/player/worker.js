@@ -6,7 +6,7 @@
 // {token, frame}, per frame, then {token, done}; or {token, error} with the decoder's message.
 
 import { Decoder } from '../src/decoder.js';
-import { frameUvs } from '../src/texture.js';
+import { frameUvs } from '../src/texture/unit.js';
 
 self.onmessage = (event) => {
   const { stream, lod, token } = event.data;

@@ -9,26 +9,17 @@
 // `lod` (0 ..= subdivision iterations, default all) stops after that many subdivisions:
 // coefficients of finer levels are not read, and the frame is reconstructed without them.
 
-import { readHeader, readUnits, Reader, INTRA, PREDICTED } from './container.js';
-import { DecodeError } from './errors.js';
-import { RangeDecoder } from './ec.js';
-import { decodeBase } from './basecoder.js';
-import { decodeMotion } from './motion.js';
-import { decodeCoefficients } from './coefcoder.js';
-import { subdivide } from './subdivide.js';
-import { reconstruct } from './reconstruct.js';
+import { readHeader, readUnits, Reader, INTRA, PREDICTED } from './stream/bitstream.js';
+import { DecodeError } from './error.js';
+import { RangeDecoder } from './stream/ec.js';
+import { decodeBase } from './base/coder.js';
+import { decodeMotion } from './inter/motion.js';
+import { decodeCoefficients } from './residual/coefcoder.js';
+import { faceAllowance, subdividedBase, reconstruct } from './model.js';
 
-export const MAX_OUTPUT_FACES = 2 ** 25;
 /** Decoded frames whose states are kept besides the latest intra frame's (`CACHED_STATES`). */
 export const CACHED_STATES = 8;
-export const FACES_PER_UNIT_BYTE = 512;
-export const MIN_FACE_ALLOWANCE = 2 ** 20;
 const QP_MIN = -24, QP_MAX = 63;
-
-/** The most output faces a frame unit of `bytes` payload bytes may decode to. */
-export function faceAllowance(bytes) {
-  return Math.min(Math.max(bytes * FACES_PER_UNIT_BYTE, MIN_FACE_ALLOWANCE), MAX_OUTPUT_FACES);
-}
 
 /**
  * @typedef {object} Frame
@@ -169,14 +160,6 @@ export class Decoder {
     }
     return { state: { positions, faces, coefficients: q }, sub, qp: p.qp };
   }
-}
-
-/** Subdivision of a base mesh on the base grid, `lod` iterations of the header's schemes. */
-export function subdividedBase(h, positions, faces, lod) {
-  const step = 2 ** (h.bits - h.baseBits);
-  const p = new Float64Array(positions.length);
-  for (let i = 0; i < p.length; i++) p[i] = 0.0 + positions[i] * step;
-  return subdivide(p, faces, h.schemes.slice(0, lod));
 }
 
 function addCoefficients(residual, reference) {

@@ -1,4 +1,5 @@
 // The dynmesh decoder for JavaScript: the public entry points.
-export { Decoder, faceAllowance } from './decoder.js';
-export { DecodeError } from './errors.js';
-export { readHeader, readUnits, SCHEME_NAMES } from './container.js';
+export { Decoder } from './decoder.js';
+export { faceAllowance } from './model.js';
+export { DecodeError } from './error.js';
+export { readHeader, readUnits, SCHEME_NAMES } from './stream/bitstream.js';

@@ -7,7 +7,7 @@ import { fileURLToPath } from 'node:url';
 import { Decoder } from '../src/index.js';
 import { readPayload } from '../src/decoder.js';
 import { frameHash } from '../src/hash.js';
-import { frameUvs } from '../src/texture.js';
+import { frameUvs } from '../src/texture/unit.js';
 import { createHash } from 'node:crypto';
 
 const DIR = fileURLToPath(new URL('../../tests/vectors/', import.meta.url));

@@ -4,7 +4,7 @@ import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFileSync } from 'node:fs';
 import { Decoder, DecodeError } from '../src/index.js';
-import { crc32 } from '../src/crc32.js';
+import { crc32 } from '../src/stream/crc32.js';
 
 const data = new Uint8Array(readFileSync(new URL('../../tests/vectors/constant_midpoint_all.dmsh', import.meta.url)));
 const headerLength = 75 + 3 * data[43]; // docs/bitstream.md section 2

@@ -3,7 +3,7 @@
 import { test } from 'node:test';
 import assert from 'node:assert/strict';
 import { readFileSync } from 'node:fs';
-import { lodScales } from '../src/reconstruct.js';
+import { lodScales } from '../src/residual/quantize.js';
 
 const FILE = new URL('../../tests/vectors/scales.txt', import.meta.url);
 

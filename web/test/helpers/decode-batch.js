@@ -5,7 +5,7 @@
 import { readFileSync } from 'node:fs';
 import { Decoder } from '../../src/index.js';
 import { frameHash } from '../../src/hash.js';
-import { frameUvs } from '../../src/texture.js';
+import { frameUvs } from '../../src/texture/unit.js';
 import { createHash } from 'node:crypto';
 
 const bytes = (a) => new Uint8Array(a.buffer, a.byteOffset, a.byteLength);

@@ -1,12 +1,12 @@
-// The container (`core/src/bitstream.rs`): sequence header, then one unit per frame with
-// type, length, payload and CRC-32, and optional texture units (type 2) after a frame.
+// The container (`core/src/stream/bitstream.rs`): sequence header, then one unit per frame
+// with type, length, payload and CRC-32, and optional texture units (type 2) after a frame.
 //
 // Contract: `readHeader` and `readUnits` accept exactly the streams the Rust reader accepts
 // and fail with the same message at the same offset; every length and count is checked
 // against the bytes present before it is used.
 
 import { crc32 } from './crc32.js';
-import { DecodeError } from './errors.js';
+import { DecodeError } from '../error.js';
 
 export const VERSION = 3;
 export const UNIT_OVERHEAD = 9;

@@ -1,18 +1,19 @@
-// Decoder of the displacement coefficient block (`core/src/coefcoder.rs`, docs/bitstream.md
-// section 7): level by level, component by component, each slice with fresh contexts.
+// Decoder of the displacement coefficient block (`core/src/residual/coefcoder.rs`,
+// docs/bitstream.md section 7): level by level, component by component, each slice with
+// fresh contexts.
 //
 // Contract: `decodeCoefficients` returns the Rust `coefcoder::decode` values for the
 // levels of `sub` (which may stop short of the stream's last level: level-of-detail
 // decoding reads only the levels it keeps, since later levels come later in the block),
 // or null where the Rust code returns None.
 
-import { bitModels, UIntModel } from './ec.js';
+import { bitModels, UIntModel } from '../stream/ec.js';
 
 // Bank layout of one (level, component) slice.
 const ALL_ZERO = 0, ZERO = 1, SIGN = 4, GT1 = 5, GT2 = 6;
 
 /**
- * @param {import('./ec.js').RangeDecoder} dec
+ * @param {import('../stream/ec.js').RangeDecoder} dec
  * @param {number} comps 1 or 3
  * @param {import('./subdivide.js').Subdivision} sub
  * @returns {Int32Array|null} vertex-major, `comps` values per vertex

@@ -1,5 +1,6 @@
-// Decoder of a texture group's UV atlas (`core/src/uvcoder.rs::decode_uv_with_positions`)
-// and its subdivision (`subdivide::subdivide_uv`), for textured streams.
+// Decoder of a texture group's UV atlas
+// (`core/src/texture/uvcoder.rs::decode_uv_with_positions`) and its subdivision
+// (`subdivide::subdivide_uv`), for textured streams.
 //
 // Contract: `decodeUvAtlas(data, positions, faces, bits)` returns the Rust result (canonical
 // UV numbering: `uvFaces` flat, `uv` flat quantized integers) or throws an Error with the
@@ -8,8 +9,8 @@
 // face's known corners and the 3D shape of the triangle; predictions use IEEE basic
 // operations and sqrt only, in the Rust order, so both decoders agree bit for bit.
 
-import { RangeDecoder, bitModels, IntModel } from './ec.js';
-import { roundHalfAway } from './basecoder.js';
+import { RangeDecoder, bitModels, IntModel } from '../stream/ec.js';
+import { roundHalfAway } from '../base/coder.js';
 
 const MAX_UV_BITS = 16;
 const MAX_CANDIDATES = 32;

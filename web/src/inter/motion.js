@@ -1,12 +1,13 @@
-// Decoder of a predicted frame's base mesh motion (`core/src/motion.rs`, docs/bitstream.md
-// section 6.5): breadth-first over the reference connectivity, each vertex's motion predicted
-// as the rounded mean of its decoded neighbours' and coded as a skip flag or three integers.
+// Decoder of a predicted frame's base mesh motion (`core/src/inter/motion.rs`,
+// docs/bitstream.md section 6.5): breadth-first over the reference connectivity, each
+// vertex's motion predicted as the rounded mean of its decoded neighbours' and coded as a
+// skip flag or three integers.
 //
 // Contract: `decodeMotion` returns the Rust `decode_motion` positions, or null where it
 // returns None (truncated, corrupt, or a vertex moved off the grid). Integers stay far
 // below 2^53, so JS numbers hold them exactly.
 
-import { bitModels, IntModel } from './ec.js';
+import { bitModels, IntModel } from '../stream/ec.js';
 
 /**
  * Sorted, repeat-free neighbour lists of `faces` over `n` vertices, as compressed rows.
@@ -63,7 +64,7 @@ function divRound(a, b) {
 }
 
 /**
- * @param {import('./ec.js').RangeDecoder} dec
+ * @param {import('../stream/ec.js').RangeDecoder} dec
  * @param {Uint32Array} reference flat xyz on the base grid
  * @param {Uint32Array} faces the reference connectivity
  * @param {number} bits base grid bits

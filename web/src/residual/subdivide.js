@@ -1,5 +1,6 @@
-// Subdivision of the base mesh (`core/src/subdivide.rs`, docs/bitstream.md section 8.2):
-// 1-to-4 splits with level-of-detail vertex order, midpoint or Loop per iteration.
+// Subdivision of the base mesh (`core/src/residual/subdivide.rs`, docs/bitstream.md
+// section 8.2): 1-to-4 splits with level-of-detail vertex order, midpoint or Loop per
+// iteration.
 //
 // Contract: `subdivide(positions, faces, schemes)` gives the Rust `Subdivision`'s
 // positions, faces, parents and level offsets bit for bit. Positions are the stencil sums

@@ -1,4 +1,4 @@
-// Decoder of the base mesh block (`core/src/basecoder.rs`, docs/bitstream.md section 6):
+// Decoder of the base mesh block (`core/src/base/coder.rs`, docs/bitstream.md section 6):
 // connectivity by a region-growing traversal over gates, then positions in a greedy order,
 // predicted by an online least-squares blend.
 //
@@ -7,7 +7,7 @@
 // Error with the Rust reason. The position predictor feeds float64 results back into the
 // decoding, so its arithmetic follows the Rust expressions operation for operation.
 
-import { RangeDecoder, UIntModel, IntModel, bitModels } from './ec.js';
+import { RangeDecoder, UIntModel, IntModel, bitModels } from '../stream/ec.js';
 
 const MAX_FACES_PER_BYTE = 4;
 const MAX_BITS = 30;
