@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 import dynmesh
-from dynmesh.sequence import resolve_sequence
+from dynmesh.io import resolve_sequence
 
 from dynmesh.baselines import Draco
 

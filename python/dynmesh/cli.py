@@ -11,8 +11,7 @@ from pathlib import Path
 # The API, numpy and the file readers are imported by the commands that use them:
 # `dynmesh decode` needs none of them, and importing them would cost it more than decoding.
 from .defaults import ENCODER, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS
-from .safety import StagedDirectory, mesh_inputs, refuse_inputs
-from .sequence import resolve_sequence
+from .io import StagedDirectory, mesh_inputs, refuse_inputs, resolve_sequence
 
 
 class CliError(Exception):
@@ -242,7 +241,7 @@ def _write_frame(path: Path, mesh) -> Path:
     from .io import write_mesh
 
     if path.suffix == ".glb":
-        from .gltf import glb_bytes
+        from .io import glb_bytes
 
         api.write_bytes_atomic(path, glb_bytes(mesh, path.stem))
     else:

@@ -90,9 +90,8 @@ import tomllib
 
 from . import api, parallel, texture
 from .baselines import Draco, Encoded
-from .io import read_mesh
+from .io import SequenceError, read_mesh, resolve_sequence
 from .mesh import Mesh
-from .sequence import SequenceError, resolve_sequence
 
 __all__ = ["ConfigError", "RunError", "Experiment", "Run", "load_experiment", "plan_runs", "run_experiment",
            "measure", "load_results", "CODECS"]
