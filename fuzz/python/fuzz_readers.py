@@ -24,8 +24,9 @@ import atheris
 with atheris.instrument_imports():
     import numpy as np
 
-    from dynmesh import atlas, texture
+    from dynmesh import texture
     from dynmesh.io import meshio
+    from dynmesh.texture import atlas
 
 WORK = Path(tempfile.mkdtemp(prefix="dynmesh-fuzz-"))
 # A mesh for the atlas to be decoded on: two triangles of a unit square.
