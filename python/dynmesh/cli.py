@@ -311,7 +311,7 @@ def cmd_synth(a) -> dict:
 def cmd_demo(a) -> dict:
     import tempfile
 
-    from .report import bd_rate
+    from .eval.report import bd_rate
     from .synth import synth_sequence, write_sequence
 
     work = Path(a.workdir) if a.workdir else Path(tempfile.mkdtemp(prefix="dynmesh-demo-"))
@@ -380,7 +380,7 @@ def _require_eval_extra() -> None:
 
 
 def cmd_eval(a) -> dict:
-    from . import evaluate, report
+    from .eval import evaluate, report
 
     _require_eval_extra()
     exp = evaluate.load_experiment(a.config)
