@@ -19,9 +19,8 @@ import time
 from pathlib import Path
 
 import dynmesh
-from dynmesh.sequence import resolve_sequence
-
-from dynmesh.baselines import Draco
+from dynmesh.eval.baselines import Draco
+from dynmesh.io import resolve_sequence
 
 from common import SHARED_DATA, check_data, markdown_table, write_section
 

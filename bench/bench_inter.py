@@ -17,7 +17,7 @@ import time
 import numpy as np
 
 import dynmesh
-from dynmesh.sequence import resolve_sequence
+from dynmesh.io import resolve_sequence
 
 from common import SHARED_DATA, check_data, markdown_table, write_section
 

@@ -30,7 +30,7 @@ import time
 from pathlib import Path
 
 from dynmesh import api, parallel
-from dynmesh.sequence import resolve_sequence
+from dynmesh.io import resolve_sequence
 
 from common import SHARED_DATA, check_data, markdown_table, write_section
 

@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 
 import dynmesh
-from dynmesh import _core, atlas, video
+from dynmesh import _core
 from dynmesh.io import read_image, write_image
+from dynmesh.texture import atlas, video
 
 from common import SHARED_DATA, check_data, markdown_table, write_section
 

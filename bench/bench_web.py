@@ -26,8 +26,7 @@ from pathlib import Path
 from common import SHARED_DATA, markdown_table, write_section
 
 from dynmesh import api
-from dynmesh.io import read_mesh
-from dynmesh.sequence import resolve_sequence
+from dynmesh.io import read_mesh, resolve_sequence
 from dynmesh.synth import synth_sequence
 
 HERE = Path(__file__).resolve().parent

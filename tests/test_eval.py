@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dynmesh import cli, evaluate, report
+from dynmesh import cli
+from dynmesh.eval import evaluate, report
 from dynmesh.io import write_mesh
 
 from conftest import SHARED_DATA, shared_sequence, wobbly_sequence
@@ -504,7 +505,7 @@ def test_bd_rows_average_and_time_ratios():
 
 
 def test_two_experiments_share_a_page_and_each_rewrites_only_its_section(tmp_path):
-    from dynmesh.report import _with_section
+    from dynmesh.eval.report import _with_section
 
     page = _with_section("", "a", "## A\nfirst")
     page = _with_section(page, "b", "## B\nsecond")

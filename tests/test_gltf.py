@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from dynmesh import api
-from dynmesh.gltf import glb_bytes
+from dynmesh.io.gltf import glb_bytes
 
 ROOT = Path(__file__).resolve().parents[1]
 VECTORS = ROOT / "tests" / "vectors"

@@ -1,10 +1,10 @@
-"""Inter coding: rigid motion (the gears of dynmesh.gears, resampled every frame) and reference choice."""
+"""Inter coding: rigid motion (the gears of dynmesh.synth.gears, resampled every frame) and reference choice."""
 
 import numpy as np
 
 import dynmesh
 import dynmesh.defaults
-from dynmesh.gears import gear_sequence
+from dynmesh.synth import gear_sequence
 
 
 def _encode(frames, **options):

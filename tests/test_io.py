@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 import pytest
 
-from dynmesh import io as mesh_io
+from dynmesh.io import meshio as mesh_io
 from dynmesh.io import MeshError, MeshWarning, read_mesh, write_mesh
 from dynmesh.mesh import Mesh
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from dynmesh.sequence import SequenceError, natural_key, resolve_sequence
+from dynmesh.io.sequence import SequenceError, natural_key, resolve_sequence
 
 
 def touch(directory, *names):

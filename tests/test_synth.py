@@ -7,9 +7,8 @@ import time
 import numpy as np
 import pytest
 
-from dynmesh.io import read_mesh
+from dynmesh.io import read_mesh, resolve_sequence
 from dynmesh.mesh import Mesh
-from dynmesh.sequence import resolve_sequence
 from dynmesh.synth import synth_sequence, write_sequence
 
 

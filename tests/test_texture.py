@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 import dynmesh
-from dynmesh import _core, api, texture, video
+from dynmesh import _core, api, texture
 from dynmesh.cli import main
 from dynmesh.io import read_image, read_mesh, write_image, write_mesh
 from dynmesh.mesh import Mesh
 from dynmesh.synth import synth_sequence
+from dynmesh.texture import video
 
 from conftest import shared_sequence, wobbly_sequence
 

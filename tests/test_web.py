@@ -17,8 +17,7 @@ import pytest
 from conftest import SHARED_DATA
 from dynmesh import api
 from dynmesh.conformance import frame_hash, uv_hash
-from dynmesh.io import read_mesh
-from dynmesh.sequence import resolve_sequence
+from dynmesh.io import read_mesh, resolve_sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 WEB = ROOT / "web"

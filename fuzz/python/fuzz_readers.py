@@ -1,5 +1,5 @@
 """Atheris harnesses for the Python-side parsers: the OBJ, PLY and MTL readers
-(``dynmesh.io``, whose per-line work is ``_core.read_obj`` / ``read_ply`` in
+(``dynmesh.io.meshio``, whose per-line work is ``_core.read_obj`` / ``read_ply`` in
 bindings/src/meshio.rs) and the texture unit payload (``dynmesh.texture.unpack_group``, then
 the atlas it carries decoded on a small mesh).
 
@@ -24,7 +24,9 @@ import atheris
 with atheris.instrument_imports():
     import numpy as np
 
-    from dynmesh import atlas, io, texture
+    from dynmesh import texture
+    from dynmesh.io import meshio
+    from dynmesh.texture import atlas
 
 WORK = Path(tempfile.mkdtemp(prefix="dynmesh-fuzz-"))
 # A mesh for the atlas to be decoded on: two triangles of a unit square.
@@ -33,23 +35,23 @@ SQUARE = (np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), np.arra
 
 def read_obj(data: bytes) -> None:
     try:
-        io._read_obj(data, WORK / "input.obj", [])
-    except io.MeshError:
+        meshio._read_obj(data, WORK / "input.obj", [])
+    except meshio.MeshError:
         pass
 
 
 def read_ply(data: bytes) -> None:
     try:
-        io._read_ply(data, WORK / "input.ply", [])
-    except io.MeshError:
+        meshio._read_ply(data, WORK / "input.ply", [])
+    except meshio.MeshError:
         pass
 
 
 def read_mtl(data: bytes) -> None:
     # The MTL reader takes a file: the library an OBJ names, read from disk.
     (WORK / "input.mtl").write_bytes(data)
-    io._read_mtl(WORK / "input.mtl", [])
-    io._map_file_name(data.decode("utf-8", "replace"))
+    meshio._read_mtl(WORK / "input.mtl", [])
+    meshio._map_file_name(data.decode("utf-8", "replace"))
 
 
 def read_texture_unit(data: bytes) -> None:
@@ -69,7 +71,7 @@ def write_seeds(root: Path) -> None:
     mesh = Mesh(SQUARE[0], SQUARE[1], uvs=SQUARE[0][:, :2].copy(), uv_faces=SQUARE[1].copy(), texture=WORK / "t.png")
     for suffix, ascii in ((".obj", False), (".ply", True), (".ply", False)):
         name = f"seed_{'ascii' if ascii else 'binary'}{suffix}"
-        io.write_mesh(WORK / name, mesh, ascii=ascii)
+        meshio.write_mesh(WORK / name, mesh, ascii=ascii)
         (root / suffix[1:]).mkdir(parents=True, exist_ok=True)
         (root / suffix[1:] / name).write_bytes((WORK / name).read_bytes())
     (root / "mtl").mkdir(parents=True, exist_ok=True)

@@ -12,7 +12,8 @@ import numpy as np
 from . import _core
 from . import texture as _texture
 from .defaults import ENCODER, FrameType
-from .io import _atomic_write, read_image
+from .io import read_image
+from .io.meshio import _atomic_write
 from .mesh import Mesh
 
 #: Encoder defaults, as the Rust core defines them; ``dynmesh encode --help`` documents each.

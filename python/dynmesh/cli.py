@@ -11,8 +11,7 @@ from pathlib import Path
 # The API, numpy and the file readers are imported by the commands that use them:
 # `dynmesh decode` needs none of them, and importing them would cost it more than decoding.
 from .defaults import ENCODER, INTER_MODES, LIFTINGS, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS
-from .safety import StagedDirectory, mesh_inputs, refuse_inputs
-from .sequence import resolve_sequence
+from .io import StagedDirectory, mesh_inputs, refuse_inputs, resolve_sequence
 
 
 class CliError(Exception):
@@ -240,7 +239,7 @@ def _write_frame(path: Path, mesh) -> Path:
     from .io import write_mesh
 
     if path.suffix == ".glb":
-        from .gltf import glb_bytes
+        from .io import glb_bytes
 
         api.write_bytes_atomic(path, glb_bytes(mesh, path.stem))
     else:
@@ -310,7 +309,7 @@ def cmd_synth(a) -> dict:
 def cmd_demo(a) -> dict:
     import tempfile
 
-    from .report import bd_rate
+    from .eval.report import bd_rate
     from .synth import synth_sequence, write_sequence
 
     work = Path(a.workdir) if a.workdir else Path(tempfile.mkdtemp(prefix="dynmesh-demo-"))
@@ -379,7 +378,7 @@ def _require_eval_extra() -> None:
 
 
 def cmd_eval(a) -> dict:
-    from . import evaluate, report
+    from .eval import evaluate, report
 
     _require_eval_extra()
     exp = evaluate.load_experiment(a.config)

@@ -40,7 +40,8 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
 from . import api, texture
-from .io import _atomic_write, read_image, read_mesh
+from .io import read_image, read_mesh
+from .io.meshio import _atomic_write
 from .mesh import Mesh
 
 __all__ = ["WorkerError", "RayPool", "encode_to_file", "encode_group", "pool", "result_of"]

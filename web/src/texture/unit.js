@@ -2,7 +2,7 @@
 // group's UV atlas decoded on the group's intra base mesh, and each frame's subdivided UVs.
 //
 // Contract: `readTextureUnit(bytes)` parses a texture unit payload or throws an Error worded
-// as python/dynmesh/texture.py's; `frameUvs(decoder)` gives a function that, called right
+// as python/dynmesh/texture/coder.py's; `frameUvs(decoder)` gives a function that, called right
 // after `decoder.decodeFrame(i)` in frame order, returns frame i's UVs ({uv: Float64Array,
 // uvFaces: Uint32Array}, UV face f for output face f) as the Python decoder gives them, or
 // null for an untextured stream. The video itself is the player's (web/player/video.js).

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import numpy as np
 
-from . import _core
-from .mesh import Mesh
+from .. import _core
+from ..mesh import Mesh
 
 __all__ = ["MeshError", "MeshWarning", "read_mesh", "write_mesh", "read_image", "write_image"]
 

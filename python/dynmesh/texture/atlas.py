@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import _core
+from .. import _core
 
 #: Bits of the quantized UVs: 4096 steps, half a texel of a 2048 x 2048 atlas.
 UV_BITS = 12

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import write_mesh
-from .mesh import Mesh
+from ..io import write_mesh
+from ..mesh import Mesh
 
 __all__ = ["polygonize", "synth_sequence", "write_sequence"]
 

@@ -1,6 +1,6 @@
 """What an experiment's results say: BD-rate tables, RD plots and a Markdown page.
 
-Everything here reads the results document of :mod:`dynmesh.evaluate` (results.json)
+Everything here reads the results document of :mod:`dynmesh.eval.evaluate` (results.json)
 and measures nothing itself, so a report can be rebuilt from saved results at any time.
 
 BD-rate (DESIGN.md section 3): Bjontegaard delta rate of a variant against the anchor,
@@ -409,7 +409,7 @@ def write_report(results: dict, report_dir: str | os.PathLike, report_file: str 
     REPORT_DIR/<report file stem>/<experiment>/ (one PNG per sequence and metric, referenced
     relatively). Several experiments share a page: each owns the part between its markers,
     which a rerun replaces; the rest of the page is kept. Returns the page's path."""
-    from .api import write_bytes_atomic
+    from ..api import write_bytes_atomic
 
     report_dir = Path(report_dir)
     page = report_dir / report_file

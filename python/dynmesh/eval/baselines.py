@@ -1,6 +1,6 @@
 """External codecs that the evaluation harness measures next to dynmesh.
 
-Every codec adapter here (and the dynmesh one in :mod:`dynmesh.evaluate`) offers the
+Every codec adapter here (and the dynmesh one in :mod:`dynmesh.eval.evaluate`) offers the
 same three things, so the harness treats them alike:
 
 - ``DEFAULTS``: every option the codec takes, with its default value. Options outside
@@ -18,7 +18,7 @@ from importlib import metadata
 
 import numpy as np
 
-from .mesh import Mesh
+from ..mesh import Mesh
 
 
 @dataclass

@@ -18,7 +18,7 @@ import struct
 
 import numpy as np
 
-from .mesh import Mesh
+from ..mesh import Mesh
 
 _FLOAT, _UINT = 5126, 5125
 _ARRAY_BUFFER, _ELEMENT_ARRAY_BUFFER = 34962, 34963

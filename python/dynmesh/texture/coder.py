@@ -20,9 +20,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import _core, atlas, video
-from .defaults import TEXTURE, FrameType
-from .mesh import Mesh
+from .. import _core
+from ..defaults import TEXTURE, FrameType
+from ..mesh import Mesh
+from . import atlas, video
 
 #: Defaults of the texture options (``encode_frames`` takes them beside the geometry ones).
 TEXTURE_DEFAULTS: dict = TEXTURE

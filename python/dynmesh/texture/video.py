@@ -14,8 +14,8 @@ import os
 
 import numpy as np
 
-from . import _core
-from .defaults import TEXTURE_CODECS
+from .. import _core
+from ..defaults import TEXTURE_CODECS
 
 #: Codec names as the stream signals them (the index is the code).
 CODECS = TEXTURE_CODECS

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mesh import Mesh
+from ..mesh import Mesh
 
 __all__ = ["gear_sequence"]
 

@@ -88,11 +88,10 @@ from pathlib import Path
 
 import tomllib
 
-from . import api, parallel, texture
+from .. import api, parallel, texture
+from ..io import SequenceError, read_mesh, resolve_sequence
+from ..mesh import Mesh
 from .baselines import Draco, Encoded
-from .io import read_mesh
-from .mesh import Mesh
-from .sequence import SequenceError, resolve_sequence
 
 __all__ = ["ConfigError", "RunError", "Experiment", "Run", "load_experiment", "plan_runs", "run_experiment",
            "measure", "load_results", "CODECS"]
@@ -135,7 +134,7 @@ CODECS = {"dynmesh": Dynmesh, "draco": Draco}
 
 
 def _package_version() -> str:
-    from . import __version__
+    from .. import __version__
 
     return __version__
 

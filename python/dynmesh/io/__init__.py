@@ -1,0 +1,36 @@
+"""Files in and out: mesh files and texture images (``meshio``: OBJ, MTL, PLY, PNG, atomic
+writes), glTF binaries for ``dynmesh decode --format glb`` (``gltf``), a sequence argument
+to its frame files (``sequence``), and the command line's promises about files (``safety``:
+no output over an input, a staged output directory).
+
+The names below are loaded on first use (PEP 562), as the package's own are: the command
+line imports ``safety`` and ``sequence`` for every command, and ``meshio`` would import numpy.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+_HOMES = {
+    "MeshError": "meshio", "MeshWarning": "meshio", "read_mesh": "meshio", "write_mesh": "meshio",
+    "read_image": "meshio", "write_image": "meshio",
+    "glb_bytes": "gltf",
+    "SequenceError": "sequence", "natural_key": "sequence", "resolve_sequence": "sequence",
+    "InputClobberError": "safety", "StagedDirectory": "safety", "mesh_inputs": "safety", "refuse_inputs": "safety",
+}
+
+__all__ = sorted(_HOMES)
+
+
+def __getattr__(name: str):
+    home = _HOMES.get(name)
+    if home is None:
+        # The import system then looks for a submodule of that name (``from .io import gltf``).
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{home}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_HOMES))
