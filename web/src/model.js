@@ -14,7 +14,9 @@ import { lodScales, valences } from './residual/quantize.js';
 import { inverseLifting } from './residual/transform.js';
 import { vertexNormals, frameToWorld } from './residual/displace.js';
 
-export const MAX_OUTPUT_FACES = 2 ** 25;
+// The bounds on what a frame may decode to, as core/src/model.rs and docs/bitstream.md give
+// them: a stream the Rust decoder refuses for its size is refused here too.
+export const MAX_OUTPUT_FACES = 2 ** 23;
 export const FACES_PER_UNIT_BYTE = 512;
 export const MIN_FACE_ALLOWANCE = 2 ** 20;
 

@@ -63,3 +63,10 @@ test('garbage behind a valid CRC is an error or a frame, quickly, never a hang',
 test('a level of detail beyond the stream is refused', () => {
   assert.throws(() => new Decoder(data, { lod: 9 }), /level of detail 9 out of range \(the stream has 2 subdivision iterations\)/);
 });
+
+test('the output face allowance is the Rust decoder\'s (docs/bitstream.md section 9)', async () => {
+  const { faceAllowance } = await import('../src/index.js');
+  assert.equal(faceAllowance(0), 2 ** 20);
+  assert.equal(faceAllowance(4096), 4096 * 512);
+  assert.equal(faceAllowance(2 ** 30), 2 ** 23);
+});
