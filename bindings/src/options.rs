@@ -41,61 +41,63 @@ macro_rules! field {
     };
 }
 
-/// The name `--inter` gives to predicting constant connectivity only (no anchor stages).
-const NO_ANCHOR: &str = "none";
+/// An option that is one field spelled as a name: `name` gives the spelling, `parse` reads
+/// it back or says why it cannot.
+macro_rules! named {
+    ($key:literal, $($path:ident).+, $name:expr, $parse:expr) => {
+        Opt {
+            key: $key,
+            get: |s, py| $name(&s.$($path).+).into_py_any(py),
+            set: |s, v| {
+                s.$($path).+ = $parse(&v.extract::<String>()?).map_err(PyValueError::new_err)?;
+                Ok(())
+            },
+        }
+    };
+}
 
 const OPTIONS: &[Opt] = &[
     field!("qp", config.qp),
     field!("base_ratio", config.base_ratio),
     field!("subdiv", config.subdiv_iterations),
-    Opt {
-        key: "scheme",
-        get: |s, py| s.config.scheme.spec().into_py_any(py),
-        set: |s, v| {
-            s.config.scheme = SchemeChoice::parse(&v.extract::<String>()?).map_err(PyValueError::new_err)?;
-            Ok(())
-        },
-    },
+    named!("scheme", config.scheme, SchemeChoice::spec, SchemeChoice::parse),
     field!("bits", config.bits),
     field!("base_bits", config.base_bits),
     field!("normal_only", config.normal_only),
     field!("intra_period", config.intra_period),
-    Opt {
-        key: "inter",
-        get: |s, py| s.config.inter.map_or(NO_ANCHOR, AnchorStages::name).into_py_any(py),
-        set: |s, v| {
-            let name: String = v.extract()?;
-            s.config.inter = match name.as_str() {
-                NO_ANCHOR => None,
-                _ => Some(AnchorStages::from_name(&name).ok_or_else(|| {
-                    PyValueError::new_err(format!("unknown inter mode {name:?} (one of {})", inter_modes().join(", ")))
-                })?),
-            };
-            Ok(())
-        },
-    },
+    named!("inter", config.inter, inter_name, inter_of),
     field!("rd_slope", config.rd_slope_db),
     field!("refit", config.refit),
     field!("fold_repair", config.fold_repair),
     field!("rigid_align", config.rigid_align),
     field!("references", config.references),
     field!("intra_reference", config.intra_reference),
-    Opt {
-        key: "lifting",
-        get: |s, py| s.config.lifting.name().into_py_any(py),
-        set: |s, v| {
-            let name: String = v.extract()?;
-            s.config.lifting = LiftingChoice::from_name(&name).ok_or_else(|| {
-                PyValueError::new_err(format!("unknown lifting {name:?} (one of {})", LiftingChoice::NAMES.join(", ")))
-            })?;
-            Ok(())
-        },
-    },
+    named!("lifting", config.lifting, |l: &LiftingChoice| l.name(), lifting_of),
     field!("aq", aq_on),
     field!("aq_alpha", aq.alpha),
     field!("aq_delta", aq.delta),
     field!("aq_h", aq.h),
 ];
+
+/// The name `--inter` gives to predicting constant connectivity only (no anchor stages).
+const NO_ANCHOR: &str = "none";
+
+fn inter_name(inter: &Option<AnchorStages>) -> &'static str {
+    inter.map_or(NO_ANCHOR, AnchorStages::name)
+}
+
+fn inter_of(name: &str) -> Result<Option<AnchorStages>, String> {
+    match name {
+        NO_ANCHOR => Ok(None),
+        _ => AnchorStages::from_name(name)
+            .map(Some)
+            .ok_or_else(|| format!("unknown inter mode {name:?} (one of {})", inter_modes().join(", "))),
+    }
+}
+
+fn lifting_of(name: &str) -> Result<LiftingChoice, String> {
+    LiftingChoice::from_name(name).ok_or_else(|| format!("unknown lifting {name:?} (one of {})", LiftingChoice::NAMES.join(", ")))
+}
 
 /// The `inter` option's values: no anchor, then the anchor's stages.
 pub fn inter_modes() -> Vec<&'static str> {

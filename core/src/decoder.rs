@@ -244,8 +244,7 @@ impl Decoder {
                 .map_err(|e| DecodeError::new(Some(f), at.base, format!("base mesh: {e}")))?,
             (FrameType::Predicted, Some(r)) => {
                 let mut dec = ec::Decoder::new(p.base);
-                let positions = motion::decode_motion(&mut dec, &r.base, &r.faces, h.base_bits)
-                    .ok_or_else(|| error(at.base, "base mesh motion is truncated or corrupt"))?;
+                let positions = motion::decode_motion(&mut dec, &r.base, &r.faces, h.base_bits).map_err(|e| error(at.base, &e.0))?;
                 (positions, r.faces.clone())
             }
             (FrameType::Predicted, None) => return Err(error(at.base, "predicted frame without its reference")),
@@ -257,8 +256,7 @@ impl Decoder {
         }
         let sub = subdivided_base(h, &positions, &faces, self.lod as usize);
         let mut dec = ec::Decoder::new(p.coefficients);
-        let mut coefficients = coefcoder::decode(&mut dec, h.components as usize, &sub)
-            .ok_or_else(|| error(at.coefficients, "displacement data is truncated or corrupt"))?;
+        let mut coefficients = coefcoder::decode(&mut dec, h.components as usize, &sub).map_err(|e| error(at.coefficients, &e.0))?;
         if p.coefficients_predicted {
             let r = reference.expect("predicted frames have a reference here");
             coefficients = add_coefficients(&coefficients, &r.coefficients)

@@ -95,7 +95,7 @@ pub fn motion(input: &[u8]) {
     let Some((&b, data)) = input.split_first() else { return };
     let (reference, faces) = context_mesh(b);
     let mut dec = ec::Decoder::new(data);
-    if let Some(moved) = motion::decode_motion(&mut dec, &reference, &faces, CONTEXT_BITS) {
+    if let Ok(moved) = motion::decode_motion(&mut dec, &reference, &faces, CONTEXT_BITS) {
         assert_eq!(moved.len(), reference.len());
         assert!(moved.iter().flatten().all(|&c| c < 1 << CONTEXT_BITS), "motion left the grid");
     }
@@ -126,7 +126,7 @@ pub fn coef(input: &[u8]) {
     let Some((&b, data)) = input.split_first() else { return };
     let (comps, sub) = coefficient_context(b);
     let mut dec = ec::Decoder::new(data);
-    if let Some(q) = coefcoder::decode(&mut dec, comps, &sub) {
+    if let Ok(q) = coefcoder::decode(&mut dec, comps, &sub) {
         assert_eq!(q.len(), sub.positions.len() * comps);
     }
 }
@@ -236,11 +236,11 @@ mod tests {
             let (p, f) = context_mesh(s[0]);
             match *name {
                 "base" => assert!(!coder::decode_base(&s[1..], CONTEXT_BITS).unwrap().1.is_empty()),
-                "motion" => assert!(motion::decode_motion(&mut ec::Decoder::new(&s[1..]), &p, &f, CONTEXT_BITS).is_some()),
+                "motion" => assert!(motion::decode_motion(&mut ec::Decoder::new(&s[1..]), &p, &f, CONTEXT_BITS).is_ok()),
                 "uv" => assert!(uvcoder::decode_uv(&s[2..], &f, p.len(), CONTEXT_BITS).is_ok()),
                 _ => {
                     let (comps, sub) = coefficient_context(s[0]);
-                    assert!(coefcoder::decode(&mut ec::Decoder::new(&s[1..]), comps, &sub).is_some());
+                    assert!(coefcoder::decode(&mut ec::Decoder::new(&s[1..]), comps, &sub).is_ok());
                 }
             }
         }

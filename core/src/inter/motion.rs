@@ -7,6 +7,7 @@
 //! skip flag (all three components zero; context: how many coded neighbours were skipped)
 //! and otherwise three signed integers with adaptive models.
 
+use crate::error::Corrupt;
 use crate::geom::mesh::Adjacency;
 use crate::stream::ec::{self, BitModel, DecSide, EncSide, IntModel, Side};
 
@@ -80,12 +81,13 @@ pub fn encode_motion(enc: &mut ec::Encoder, reference: &[[u32; 3]], current: &[[
 }
 
 /// Decodes what [`encode_motion`] wrote: the current positions of the reference's vertices
-/// on a grid of `bits` bits. `None` if the data is truncated, corrupt, or moves a vertex
-/// off the grid.
-pub fn decode_motion(dec: &mut ec::Decoder, reference: &[[u32; 3]], faces: &[[u32; 3]], bits: u32) -> Option<Vec<[u32; 3]>> {
-    let current = code_motion(&mut DecSide(dec), reference, None, faces, (1i64 << bits) - 1)?;
-    dec.finish().ok()?;
-    Some(current)
+/// on a grid of `bits` bits. An error if the data is truncated, corrupt, or moves a vertex
+/// off the grid; the caller adds where.
+pub fn decode_motion(dec: &mut ec::Decoder, reference: &[[u32; 3]], faces: &[[u32; 3]], bits: u32) -> Result<Vec<[u32; 3]>, Corrupt> {
+    let corrupt = || Corrupt::from("base mesh motion is truncated or corrupt");
+    let current = code_motion(&mut DecSide(dec), reference, None, faces, (1i64 << bits) - 1).ok_or_else(corrupt)?;
+    dec.finish().map_err(|_| corrupt())?;
+    Ok(current)
 }
 
 /// Both directions of the motion coding: the encoder passes `current` and gets it back, the
@@ -199,10 +201,10 @@ mod tests {
         encode_motion(&mut enc, &r, &c, &f);
         let bytes = enc.finish();
         let mut dec = ec::Decoder::new(&bytes[..bytes.len() / 2]);
-        assert!(decode_motion(&mut dec, &r, &f, 10).is_none());
+        assert!(decode_motion(&mut dec, &r, &f, 10).is_err());
         // The same motion read against a reference at the edge of a 10-bit grid leaves it.
         let edge: Vec<[u32; 3]> = r.iter().map(|p| [p[0], p[1], 1023]).collect();
         let mut dec = ec::Decoder::new(&bytes);
-        assert!(decode_motion(&mut dec, &edge, &f, 10).is_none());
+        assert!(decode_motion(&mut dec, &edge, &f, 10).is_err());
     }
 }

@@ -7,6 +7,7 @@
 //! flag's context also counts how many of the vertex's two parents had a non-zero
 //! coefficient: detail tends to cluster, and the parents are always decoded first.
 
+use crate::error::Corrupt;
 use crate::stream::ec::{BitModel, DecSide, Decoder, EncSide, Encoder, Side, UIntModel};
 use crate::residual::subdivide::Subdivision;
 
@@ -41,12 +42,14 @@ pub fn encode(enc: &mut Encoder, q: &[i32], comps: usize, s: &Subdivision) {
     code(&mut EncSide(enc), &mut q, comps, s).expect("coefficients above i32::MIN in magnitude");
 }
 
-/// Reads what [`encode`] wrote for the subdivision `s`. Returns `None` when the coded data
-/// runs out or is impossible; the caller reports where.
-pub fn decode(dec: &mut Decoder, comps: usize, s: &Subdivision) -> Option<Vec<i32>> {
+/// Reads what [`encode`] wrote for the subdivision `s`. An error when the coded data runs
+/// out or is impossible; the caller adds where.
+pub fn decode(dec: &mut Decoder, comps: usize, s: &Subdivision) -> Result<Vec<i32>, Corrupt> {
+    let corrupt = || Corrupt::from("displacement data is truncated or corrupt");
     let mut q = vec![0i32; s.positions.len() * comps];
-    code(&mut DecSide(dec), &mut q, comps, s)?;
-    dec.finish().ok().map(|_| q)
+    code(&mut DecSide(dec), &mut q, comps, s).ok_or_else(corrupt)?;
+    dec.finish().map_err(|_| corrupt())?;
+    Ok(q)
 }
 
 /// Codes `q` level by level, component by component: the encoder's values, or zeros that the
@@ -123,7 +126,7 @@ mod tests {
             encode(&mut e, &q, comps, &s);
             let data = e.finish();
             let mut d = Decoder::new(&data);
-            assert_eq!(decode(&mut d, comps, &s), Some(q));
+            assert_eq!(decode(&mut d, comps, &s), Ok(q));
         }
     }
 
@@ -136,6 +139,6 @@ mod tests {
         encode(&mut e, &q, 1, &s);
         let data = e.finish();
         let mut d = Decoder::new(&data[..data.len() / 2]);
-        assert_eq!(decode(&mut d, 1, &s), None);
+        assert!(decode(&mut d, 1, &s).is_err());
     }
 }
