@@ -4,7 +4,7 @@
 //! shares ([`FrameModel`]), which is what makes the two agree bit for bit. Predicted frames
 //! take their base mesh from the frame they name, so [`Decoder`] walks back to the intra
 //! frame that starts the chain (seeking) and keeps the states of the frames it decoded last
-//! ([`StateCache`]), which later frames refer to.
+//! (`StateCache`), which later frames refer to.
 //!
 //! Level-of-detail decoding ([`Decoder::set_lod`]) stops after K of the stream's
 //! subdivision iterations: each frame is subdivided K times, the coefficients of the levels
@@ -72,7 +72,7 @@ impl StateCache {
 
 /// A checked stream whose frames can be decoded in any order. Predicted frames are decoded
 /// from the intra frame before them, or from the nearest state on their chain that the
-/// [`StateCache`] holds, so decoding in order costs one frame's work per frame. A clone
+/// `StateCache` holds, so decoding in order costs one frame's work per frame. A clone
 /// decodes on its own (threads decoding independent frames each take one).
 #[derive(Clone)]
 pub struct Decoder {

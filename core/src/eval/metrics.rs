@@ -232,7 +232,7 @@ pub fn mesh_psnr(
 pub type ColouredCloud<'a> = (&'a PointCloud, &'a [[u8; 3]]);
 
 /// Symmetric colour distortion between two coloured clouds, per channel Y, Cb, Cr in [0, 1]
-/// ([`ycbcr_pcc`]), as pc_error computes it (`neighborsProc = 1`, `mseSpace = 1`): for each
+/// (`ycbcr_pcc`), as pc_error computes it (`neighborsProc = 1`, `mseSpace = 1`): for each
 /// point of one cloud, the nearest points of the other (the same equidistant set [`distortion`]
 /// uses for D2), the mean of their colours rounded to 8 bits (half away from zero), and the
 /// squared difference of the two colours' YCbCr; the mean over the points; per channel the

@@ -61,7 +61,7 @@ pub fn sample_grid(positions: &[[f64; 3]], faces: &[[u32; 3]], grid: &SamplingGr
 /// [`sample_grid`] of `mesh` (the same points and normals, in the same order) together with each
 /// point's colour, 8-bit RGB, as mmetric hands it to pc_error: `texture` is read bilinearly at
 /// the UV interpolated at each raw sample, both in mmetric's single precision
-/// ([`bilinear_f32`]); raw samples equal in position, normal *and* (unrounded) colour count once
+/// (`bilinear_f32`); raw samples equal in position, normal *and* (unrounded) colour count once
 /// (mmetric's sampler keeps all three in its duplicate test); each remaining sample is rounded
 /// to 8 bits per channel, and a point's colour is the mean of the rounded colours of the samples
 /// merged into it, truncated (pc_error's integer mean). A face without a valid UV triangle

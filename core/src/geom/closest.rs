@@ -1,9 +1,9 @@
 //! Closest points of a triangle surface for a walk of queries that lie close together.
 //!
 //! [`Bvh::closest_point`] answers one query from the root of the hierarchy. Texture transfer
-//! asks millions, each next to the one before; a [`Finder`] keeps a shortlist of the source
-//! triangles near the last queries, with distance bounds ([`Bound`]) that prove which one is
-//! closest, and renews it from a uniform grid of the triangles ([`FaceGrid`]: the query for
+//! asks millions, each next to the one before; a `Finder` keeps a shortlist of the source
+//! triangles near the last queries, with distance bounds (`Bound`) that prove which one is
+//! closest, and renews it from a uniform grid of the triangles (`FaceGrid`: the query for
 //! all triangles near a ball, which the Bvh does not offer). Its answers are exactly the
 //! Bvh's, tie-breaking included, with the barycentrics of the closest point.
 
@@ -195,12 +195,12 @@ impl<'a> Finder<'a> {
     }
 }
 
-/// A triangle of a [`Finder`]'s shortlist.
+/// A triangle of a `Finder`'s shortlist.
 struct Entry {
     /// A lower bound on its distance from the shortlist's centre.
     lower: f64,
     face: u32,
-    /// The plane of its [`Bound`] farthest from the centre: one plane, a yet cheaper bound
+    /// The plane of its `Bound` farthest from the centre: one plane, a yet cheaper bound
     /// for points nearby.
     plane: [f64; 4],
 }
@@ -295,7 +295,7 @@ fn box_dist2((lo, hi): &Aabb, q: [f64; 3]) -> f64 {
 const MAX_CELLS: f64 = 4_000_000.0;
 
 /// The source triangles bucketed by the cells of a uniform grid that their bounding boxes
-/// overlap: the query for all triangles near a ball, which the [`Finder`] needs and [`Bvh`]
+/// overlap: the query for all triangles near a ball, which the `Finder` needs and [`Bvh`]
 /// does not offer.
 struct FaceGrid {
     lo: [f64; 3],

@@ -11,7 +11,7 @@
 //! The closest-point searches dominate the cost (an atlas has millions of texels). Rather than
 //! asking the source's Bvh for each, the image is cut into bands of rows, one rayon task each;
 //! a band is rasterised, then walked texel after adjacent texel, so that a
-//! [`crate::geom::closest::Finder`] serves many texels from one shortlist. Its answers are exactly
+//! `crate::geom::closest::Finder` serves many texels from one shortlist. Its answers are exactly
 //! the Bvh's, so the result does not depend on the walk.
 //!
 //! Image conventions are those of [`crate::texture`]: rows from the top, `v` up, texel

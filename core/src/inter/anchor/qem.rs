@@ -14,7 +14,7 @@
 //! match: the paper keeps the anchor one-to-one with the reference, and without this lock
 //! matches on neighbouring input vertices collapse into each other one after the other, down
 //! to a single point. And where the optimal point is not unique (a flat or creased
-//! neighbourhood), the match itself is preferred ([`collapse_point`]).
+//! neighbourhood), the match itself is preferred (`collapse_point`).
 
 use crate::geom::mesh::{add, scale, sub, Mesh};
 use crate::geom::quadric::Quadric;
