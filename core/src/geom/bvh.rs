@@ -5,6 +5,8 @@
 //! crossing of a (two-sided) line with the surface. Both break ties on equal distance by the
 //! lowest triangle index, so results do not depend on the shape of the tree.
 
+use rayon::prelude::*;
+
 use crate::geom::mesh::{add, cross, dot, scale, sub};
 
 /// Triangles per leaf: small leaves keep the number of exact triangle tests per query low.
@@ -42,7 +44,7 @@ pub struct LineHit {
 /// (see [`pad`]). Side `s` is a leaf holding triangles `link[s] .. link[s] + count[s]` of the
 /// reordered arrays, or, when `count[s] == 0`, an inner node whose children are the two
 /// sides of pair `link[s]`. A node is named `2 * pair + side`; the root is side 0 of pair 0.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[repr(C, align(64))]
 struct Pair {
     /// `lo[axis][side]`: both sides of an axis side by side, so that the box tests of the
@@ -73,20 +75,24 @@ impl Bvh {
     /// finite; see `Mesh::validate`). Degenerate triangles are allowed: they are found by
     /// closest-point queries as segments or points and never hit by lines.
     pub fn new(positions: &[[f64; 3]], faces: &[[u32; 3]]) -> Self {
+        Self::built(positions, faces, PARALLEL_BUILD)
+    }
+
+    /// [`Bvh::new`], building subtrees of `parallel_min` or more triangles on two threads.
+    fn built(positions: &[[f64; 3]], faces: &[[u32; 3]], parallel_min: usize) -> Self {
         if faces.is_empty() {
             return Self::default();
         }
-        let corners: Vec<[[f64; 3]; 3]> =
-            faces.iter().map(|f| f.map(|v| positions[v as usize])).collect();
+        let corners: Vec<[[f64; 3]; 3]> = faces.par_iter().map(|f| f.map(|v| positions[v as usize])).collect();
         let pad = pad(&corners);
-        let boxes: Vec<Aabb> = corners.iter().map(|c| triangle_box(c, pad)).collect();
+        let boxes: Vec<Aabb> = corners.par_iter().map(|c| triangle_box(c, pad)).collect();
         let mut items: Vec<Item> = boxes
-            .iter()
+            .par_iter()
             .enumerate()
             .map(|(i, b)| Item { center: [0, 1, 2].map(|k| 0.5 * (b.0[k] + b.1[k])), id: i as u32 })
             .collect();
         let mut pairs = vec![EMPTY_PAIR];
-        build(&mut pairs, ROOT, &mut items, 0, &boxes);
+        build(&mut pairs, ROOT, &mut items, 0, &Split { boxes: &boxes, parallel_min });
         let tris = items.iter().map(|it| corners[it.id as usize]).collect();
         let ids: Vec<u32> = items.iter().map(|it| it.id).collect();
         let mut slot = vec![0u32; ids.len()];
@@ -331,12 +337,19 @@ struct Item {
 /// median box centre along the widest extent of the centres, and returns its box. The median
 /// keeps the tree balanced (depth <= 31, within the fixed query stacks) and needs no tuning;
 /// boxes are merged bottom-up so each triangle box is read once.
-fn build(pairs: &mut Vec<Pair>, node: u32, items: &mut [Item], first: u32, boxes: &[Aabb]) -> Aabb {
+/// What every level of a build reads: the triangles' boxes, and the subtree size from which
+/// the two halves are built on two threads.
+struct Split<'a> {
+    boxes: &'a [Aabb],
+    parallel_min: usize,
+}
+
+fn build(pairs: &mut Vec<Pair>, node: u32, items: &mut [Item], first: u32, split: &Split) -> Aabb {
     let (p, s) = ((node >> 1) as usize, (node & 1) as usize);
     let bx = if items.len() <= LEAF_SIZE {
         pairs[p].link[s] = first;
         pairs[p].count[s] = items.len() as u32;
-        let b = |it: &Item| boxes[it.id as usize];
+        let b = |it: &Item| split.boxes[it.id as usize];
         items.iter().skip(1).fold(b(&items[0]), |acc, it| union(acc, b(it)))
     } else {
         let axis = widest_axis(items);
@@ -346,10 +359,43 @@ fn build(pairs: &mut Vec<Pair>, node: u32, items: &mut [Item], first: u32, boxes
         let child = pairs.len() as u32;
         pairs.push(EMPTY_PAIR);
         pairs[p].link[s] = child;
-        let l = build(pairs, 2 * child, left, first, boxes);
-        let r = build(pairs, 2 * child + 1, right, first + mid as u32, boxes);
-        union(l, r)
+        if left.len() + right.len() >= split.parallel_min {
+            let right_first = first + mid as u32;
+            let (l, r) = rayon::join(|| subtree(left, first, split), || subtree(right, right_first, split));
+            let l = graft(pairs, 2 * child, l);
+            let r = graft(pairs, 2 * child + 1, r);
+            union(l, r)
+        } else {
+            let l = build(pairs, 2 * child, left, first, split);
+            let r = build(pairs, 2 * child + 1, right, first + mid as u32, split);
+            union(l, r)
+        }
     };
+    set_box(&mut pairs[p], s, bx);
+    bx
+}
+
+/// Subtrees of at least this many triangles build their two halves on two threads.
+const PARALLEL_BUILD: usize = 8192;
+
+/// A subtree built on its own: its pairs in the order [`build`] pushes them, after a holder
+/// pair whose side 0 is the subtree's root; and the subtree's box.
+fn subtree(items: &mut [Item], first: u32, split: &Split) -> (Vec<Pair>, Aabb) {
+    let mut pairs = vec![EMPTY_PAIR];
+    let bx = build(&mut pairs, ROOT, items, first, split);
+    (pairs, bx)
+}
+
+/// Appends a [`subtree`]'s pairs to `pairs` and makes `node` its root: the layout (and so
+/// the order in which queries visit the tree) is exactly that of a sequential build.
+fn graft(pairs: &mut Vec<Pair>, node: u32, (sub, bx): (Vec<Pair>, Aabb)) -> Aabb {
+    // Inner links of `sub` index `sub`, whose entry 0 (the holder) is not appended.
+    let offset = pairs.len() as u32;
+    let relink = |q: &Pair, side: usize| if q.count[side] == 0 { q.link[side] - 1 + offset } else { q.link[side] };
+    let (p, s) = ((node >> 1) as usize, (node & 1) as usize);
+    pairs[p].count[s] = sub[0].count[0];
+    pairs[p].link[s] = relink(&sub[0], 0);
+    pairs.extend(sub[1..].iter().map(|q| Pair { link: [relink(q, 0), relink(q, 1)], ..*q }));
     set_box(&mut pairs[p], s, bx);
     bx
 }
@@ -565,7 +611,17 @@ mod tests {
     use crate::geom::testmesh::{grid, timed, uv_sphere, Rng, Soup};
     use super::*;
     use crate::geom::mesh::normalize;
-    use rayon::prelude::*;
+
+    #[test]
+    fn a_parallel_build_lays_the_tree_out_as_a_sequential_one() {
+        let (pos, faces) = uv_sphere(40, 60, |_, _| 1.0);
+        let sequential = Bvh::built(&pos, &faces, usize::MAX);
+        for parallel_min in [8, 100, 1000] {
+            let parallel = Bvh::built(&pos, &faces, parallel_min);
+            assert!(parallel.pairs == sequential.pairs, "parallel_min {parallel_min}");
+            assert_eq!((&parallel.tris, &parallel.ids, &parallel.slot), (&sequential.tris, &sequential.ids, &sequential.slot));
+        }
+    }
 
     /// A bumpy sphere of 2000 triangles with jittered vertices, plus zero-area faces.
     fn bumpy() -> Soup {
