@@ -173,7 +173,7 @@ function addCoefficients(residual, reference) {
   return out;
 }
 
-/** Splits a frame payload into its fields (`decoder::read_payload`). */
+/** Splits a frame payload into its fields (`stream::payload::Payload::read`). */
 export function readPayload(data, unit, frame) {
   const r = new Reader(data, unit.offset, unit.offset + unit.length, frame);
   let referenceDistance = 0;
