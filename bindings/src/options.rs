@@ -21,6 +21,13 @@ struct Settings {
     aq: AqParams,
 }
 
+impl Default for Settings {
+    fn default() -> Self {
+        let config = EncoderConfig::default();
+        Self { aq_on: config.aq.is_some(), aq: config.aq.unwrap_or_default(), config }
+    }
+}
+
 struct Opt {
     key: &'static str,
     get: fn(&Settings, Python<'_>) -> PyResult<PyObject>,
@@ -107,8 +114,7 @@ pub fn inter_modes() -> Vec<&'static str> {
 /// The encoder configuration from a dict of options named as in [`default_options`]; the
 /// options not given keep their defaults. Errors on an unknown name or an invalid value.
 pub fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
-    let config = EncoderConfig::default();
-    let mut s = Settings { aq_on: config.aq.is_some(), aq: config.aq.unwrap_or_default(), config };
+    let mut s = Settings::default();
     for (key, value) in options.iter() {
         let key: String = key.extract()?;
         let opt = OPTIONS.iter().find(|o| o.key == key);
@@ -123,8 +129,7 @@ pub fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
 /// The encoder's default options, by name, in the order of [`OPTIONS`].
 #[pyfunction]
 pub fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    let config = EncoderConfig::default();
-    let s = Settings { aq_on: config.aq.is_some(), aq: config.aq.unwrap_or_default(), config };
+    let s = Settings::default();
     let d = PyDict::new(py);
     for o in OPTIONS {
         d.set_item(o.key, (o.get)(&s, py)?)?;

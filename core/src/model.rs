@@ -59,29 +59,23 @@ pub fn subdivided_base(h: &SequenceHeader, positions: &[[u32; 3]], faces: &[[u32
     subdivide(&base_in_grid_units(h, positions), faces, &h.schemes[..iterations])
 }
 
-/// One frame's reconstruction model: the stream's header, the frame's QP, its subdivided
-/// base mesh and the local frames the displacements are expressed in.
+/// One frame's reconstruction model: the stream's header, its subdivided base mesh, the
+/// local frames the displacements are expressed in and the vertices' quantization scales
+/// at the frame's QP.
 pub struct FrameModel<'h> {
     header: &'h SequenceHeader,
-    qp: i32,
     pub sub: Subdivision,
     /// The local (normal, tangent, bitangent) frame of each vertex of `sub`.
     pub frames: Vec<Frame>,
+    /// The quantization scale of each vertex of `sub`.
+    scales: Vec<f64>,
 }
 
 impl<'h> FrameModel<'h> {
     pub fn new(header: &'h SequenceHeader, qp: i32, sub: Subdivision) -> Self {
         let frames = displace::local_frames(&sub.positions, &sub.faces);
-        Self { header, qp, sub, frames }
-    }
-
-    /// The quantization scale of every vertex: its level's scale, times its adaptive weight
-    /// when the stream uses adaptive quantization.
-    pub fn scales(&self) -> Vec<f64> {
-        let (h, sub) = (self.header, &self.sub);
-        let scales = quantize::lod_scales(self.qp, h.grid.bits, sub.lod_count());
-        let weights = quantize::vertex_weights(sub.positions.len(), &sub.faces, h.aq.as_ref());
-        weights.iter().enumerate().map(|(v, w)| w * quantize::scale_of(v, &sub.lod_offsets, &scales)).collect()
+        let scales = vertex_scales(header, qp, &sub);
+        Self { header, sub, frames, scales }
     }
 
     /// The values the quantizer rounds, `components` per vertex: the forward lifting of the
@@ -94,7 +88,7 @@ impl<'h> FrameModel<'h> {
         transform::forward(&mut signal, &self.sub, &h.lifting);
         let offset = h.aq.map_or(0.0, |a| a.delta);
         let mut x = Vec::with_capacity(signal.len() * comps);
-        for (c, s) in signal.iter().zip(self.scales()) {
+        for (c, &s) in signal.iter().zip(&self.scales) {
             x.extend((0..comps).map(|k| quantize::steps(c[k], s, offset)));
         }
         x
@@ -109,10 +103,18 @@ impl<'h> FrameModel<'h> {
         let dequantized = |(v, s): (usize, f64)| -> [f64; 3] {
             std::array::from_fn(|k| if k < comps { quantize::dequantize_shifted(q[v * comps + k], s, offset) } else { 0.0 })
         };
-        let mut local: Vec<[f64; 3]> = self.scales().into_iter().enumerate().map(dequantized).collect();
+        let mut local: Vec<[f64; 3]> = self.scales.iter().copied().enumerate().map(dequantized).collect();
         transform::inverse(&mut local, &self.sub, &h.lifting);
         let world = displace::to_world(&local, &self.frames);
         let positions = self.sub.positions.iter().zip(&world).map(|(p, d)| h.grid.to_world([p[0] + d[0], p[1] + d[1], p[2] + d[2]])).collect();
         Mesh::new(positions, self.sub.faces.clone())
     }
+}
+
+/// The quantization scale of every vertex of `sub`: its level's scale at `qp`, times its
+/// adaptive weight when the stream uses adaptive quantization.
+fn vertex_scales(h: &SequenceHeader, qp: i32, sub: &Subdivision) -> Vec<f64> {
+    let scales = quantize::lod_scales(qp, h.grid.bits, sub.lod_count());
+    let weights = quantize::vertex_weights(sub.positions.len(), &sub.faces, h.aq.as_ref());
+    weights.iter().enumerate().map(|(v, w)| w * quantize::scale_of(v, &sub.lod_offsets, &scales)).collect()
 }

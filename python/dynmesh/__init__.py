@@ -8,7 +8,7 @@
 
 from __future__ import annotations
 
-import importlib
+from ._lazy import lazy_names as _lazy_names
 
 # The names are loaded on first use (PEP 562): `python -m dynmesh decode` imports this
 # package, and importing the API eagerly would import numpy (a quarter of a second) for a
@@ -25,20 +25,5 @@ __all__ = sorted(_HOMES)
 __version__ = "0.1.0"
 
 
-def __getattr__(name: str):
-    home = _HOMES.get(name)
-    if home is not None:
-        value = getattr(importlib.import_module(f".{home}", __name__), name)
-        globals()[name] = value
-        return value
-    # Submodules (dynmesh.api, ...) were attributes once the package was imported: still so.
-    try:
-        return importlib.import_module(f".{name}", __name__)
-    except ModuleNotFoundError as e:
-        if e.name != f"{__name__}.{name}":
-            raise
-    raise AttributeError(f"module 'dynmesh' has no attribute {name!r}")
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_HOMES))
+# Submodules (dynmesh.api, ...) were attributes once the package was imported: still so.
+__getattr__, __dir__ = _lazy_names(__name__, _HOMES, globals(), submodules=True)

@@ -9,7 +9,7 @@ line imports ``safety`` and ``sequence`` for every command, and ``meshio`` would
 
 from __future__ import annotations
 
-import importlib
+from .._lazy import lazy_names as _lazy_names
 
 _HOMES = {
     "MeshError": "meshio", "MeshWarning": "meshio", "read_mesh": "meshio", "write_mesh": "meshio",
@@ -22,15 +22,4 @@ _HOMES = {
 __all__ = sorted(_HOMES)
 
 
-def __getattr__(name: str):
-    home = _HOMES.get(name)
-    if home is None:
-        # The import system then looks for a submodule of that name (``from .io import gltf``).
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{home}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_HOMES))
+__getattr__, __dir__ = _lazy_names(__name__, _HOMES, globals())
