@@ -43,9 +43,10 @@ def write_section(name: str, body: str) -> None:
 
 
 def markdown_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
+    """A table of ``rows`` with (key, heading, format) ``columns``; a None value is an empty cell."""
     head = "| " + " | ".join(h for _, h, _ in columns) + " |"
     rule = "|" + "|".join("---:" for _ in columns) + "|"
-    body = ["| " + " | ".join(format(r[k], f) for k, _, f in columns) + " |" for r in rows]
+    body = ["| " + " | ".join("" if r[k] is None else format(r[k], f) for k, _, f in columns) + " |" for r in rows]
     return "\n".join([head, rule, *body])
 
 

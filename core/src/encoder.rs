@@ -195,9 +195,17 @@ pub const MAX_REFERENCES: u32 = decoder::CACHED_STATES as u32;
 /// (high QP) go with a small base mesh, fine ones pay for a larger base mesh that follows
 /// the input closer. Chosen by a sweep over base ratio (3 to 20 %), base bits (8 to 11) and
 /// QP (20 to 36) on the first 6 frames of four capture sequences, against the MPEG test
-/// model's points (docs/results.md): 6 % was best up to about 75 dB D1, 12 % above.
+/// model's points (docs/results.md): 6 % was best from about 74 to 76 dB D1, 12 % above;
+/// below, a re-run with 4 % too (2026-12-03, QP 20-36 in steps of 2) found 4 % from QP 30
+/// on best (D1 BD-rate against the test model -9.3 -> -10.9 % on basketball_player, -5.4
+/// -> -6.6 % dancer, -7.1 -> -7.0 % mitch, -15.6 -> -16.1 % thomas); a third fewer output
+/// faces at those rates, so encoding and decoding are faster too.
 pub fn base_ratio_for_qp(qp: i32) -> f64 {
-    if qp >= 26 { 0.06 } else { 0.12 }
+    match qp {
+        30.. => 0.04,
+        26..=29 => 0.06,
+        _ => 0.12,
+    }
 }
 
 /// What encoding one frame produced.
