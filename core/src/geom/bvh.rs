@@ -190,6 +190,9 @@ impl Bvh {
             let (link, count) = self.node(node);
             if count > 0 {
                 for k in link as usize..(link + count) as usize {
+                    if triangle_box_dist2(&self.tris[k], q) > best_d2 * (1.0 + 1e-9) {
+                        continue;
+                    }
                     let (point, dist2, bary) = closest_on_triangle(q, self.tris[k]);
                     let cand = SurfacePoint { point, triangle: self.ids[k], dist2, bary };
                     if better_point(&cand, best.as_ref()) {
@@ -431,6 +434,20 @@ fn fmin(a: f64, b: f64) -> f64 {
 #[inline]
 fn fmax(a: f64, b: f64) -> f64 {
     if a > b { a } else { b }
+}
+
+/// Squared distance from `q` to the bounding box of triangle `t`: a lower bound of its
+/// distance to the triangle, far cheaper to compute.
+#[inline(always)]
+fn triangle_box_dist2(t: &[[f64; 3]; 3], q: [f64; 3]) -> f64 {
+    let mut acc = 0.0;
+    for k in 0..3 {
+        let lo = fmin(fmin(t[0][k], t[1][k]), t[2][k]);
+        let hi = fmax(fmax(t[0][k], t[1][k]), t[2][k]);
+        let e = fmax(fmax(lo - q[k], q[k] - hi), 0.0);
+        acc += e * e;
+    }
+    acc
 }
 
 /// Squared distances from `q` to the two boxes of `pair`. Indexed loops over the two sides, so
