@@ -168,7 +168,7 @@ def main() -> int:
             f"{a.repeat} runs each, alternated; 1-minute load average {load:.1f} on 2 cores when the run started "
             "(the machine is shared: ratios within one run hold, absolute times +-20 %). Speed-up and efficiency "
             "are against one process of the same kind. The sequential encoder runs the core's thread pool over "
-            "both cores; each of N local worker processes a pool of cores / N threads, each Ray worker one thread "
+            "both cores; each of N local worker processes a pool of cores / N + 1 threads (at most the cores), each Ray worker one thread "
             "(one CPU per task). Cores obtained: CPU seconds of the "
             "encoder's processes over wall seconds, the share of the 2 cores the encode got; the kernel shares "
             "the CPU between sessions (autogroup), so on a machine busy with other sessions a second process "

@@ -77,15 +77,32 @@ def test_textured_groups_in_two_processes_are_the_sequential_stream():
 
 def test_cli_jobs_2_writes_the_stream_of_jobs_1(tmp_path, frames_dir, sequential):
     one, two = tmp_path / "one.dmsh", tmp_path / "two.dmsh"
-    run("encode", frames_dir, "-o", one, "--intra-period", PERIOD, "-q")
+    run("encode", frames_dir, "-o", one, "--intra-period", PERIOD, "--jobs", "1", "-q")
     out = json.loads(run("encode", frames_dir, "-o", two, "--intra-period", PERIOD, "--jobs", "2", "--json", "-q").stdout)
     assert two.read_bytes() == one.read_bytes() == sequential.data
     assert out["bytes"] == len(sequential.data) and [f["frame"] for f in out["frames"]] == list(range(12))
 
 
+def test_cli_default_jobs_are_one_per_core_and_at_most_one_per_group(tmp_path, frames_dir, sequential, monkeypatch):
+    from dynmesh import cli
+
+    monkeypatch.setattr(os, "cpu_count", lambda: 8)
+    assert cli._encode_jobs("auto", 12, PERIOD) == 3  # three groups
+    assert cli._encode_jobs("auto", 100, 1) == 8  # all intra: one group per frame
+    assert cli._encode_jobs("auto", 6, 32) == 1  # one group: coded in the command's process
+    assert cli._encode_jobs(5, 6, 32) == 5
+    monkeypatch.setattr(os, "cpu_count", lambda: None)
+    assert cli._encode_jobs("auto", 12, PERIOD) == 1
+    out = tmp_path / "default.dmsh"
+    run("encode", frames_dir, "-o", out, "--intra-period", PERIOD, "-q")
+    assert out.read_bytes() == sequential.data
+
+
 def test_bad_parallel_options_are_refused(tmp_path, frames_dir):
     p = run("encode", frames_dir, "-o", tmp_path / "s.dmsh", "--jobs", "0", check=False)
-    assert p.returncode == 1 and "--jobs must be at least 1, got 0" in p.stderr
+    assert p.returncode == 1 and "--jobs must be at least 1 or auto, got 0" in p.stderr
+    p = run("encode", frames_dir, "-o", tmp_path / "s.dmsh", "--jobs", "all", check=False)
+    assert p.returncode == 2 and "expected a number of processes or auto, got 'all'" in p.stderr
     p = run("encode", frames_dir, "-o", tmp_path / "s.dmsh", "--jobs", "2", "--ray", "auto", check=False)
     assert p.returncode == 2 and "not allowed with argument" in p.stderr
     assert not list(tmp_path.iterdir())

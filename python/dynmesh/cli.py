@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import sys
 import time
 from pathlib import Path
@@ -107,14 +108,15 @@ def cmd_encode(a) -> dict:
     if texture_option is True and not all(textured):
         raise ValueError(f"frame {textured.index(False)}: texture coding asks for UVs and a texture image on every frame")
     use_texture = all(textured) if texture_option == "auto" else texture_option
+    jobs = _encode_jobs(a.jobs, len(paths), options["intra_period"])
     with _progress(len(paths), "encoding", a.quiet) as bar:
-        if a.jobs == 1 and a.ray is None:
+        if jobs == 1 and a.ray is None:
             result = api.encode_frames((parallel.read_again(p) for p in paths), on_frame=lambda i, s: bar.update(),
                                        texture=use_texture, sequence=(len(paths), lo, hi), **options)
             api.write_bytes_atomic(a.output, result.data)
         else:  # the workers read the frames; the stream is written as their groups come
             result = parallel.encode_to_file(a.output, paths, sequence=(len(paths), lo, hi), texture=use_texture,
-                                             jobs=a.jobs, ray=a.ray, on_frame=lambda i, s: bar.update(), **options)
+                                             jobs=jobs, ray=a.ray, on_frame=lambda i, s: bar.update(), **options)
     size = Path(a.output).stat().st_size
     frames = [{"frame": i, "input": str(p), **s} for i, (p, s) in enumerate(zip(paths, result.frames))]
     summary = {"output": str(a.output), "bytes": size, "texture_bytes": result.texture_bytes,
@@ -432,8 +434,28 @@ def cmd_eval(a) -> dict:
 
 
 def _check_jobs(a) -> None:
-    if a.jobs < 1:
-        raise CliError(f"--jobs must be at least 1, got {a.jobs}")
+    if a.jobs != "auto" and a.jobs < 1:
+        raise CliError(f"--jobs must be at least 1 or auto, got {a.jobs}")
+    if a.jobs == "auto" and a.ray is not None:
+        a.jobs = 1  # the cluster's CPUs are the workers
+
+
+def _jobs(text: str) -> int | str:
+    if text == "auto":
+        return text
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of processes or auto, got {text!r}") from None
+
+
+def _encode_jobs(jobs: int | str, frames: int, intra_period: int) -> int:
+    """Local processes for ``encode --jobs``: ``auto`` is one per core, but no more than there
+    are groups (all-intra: one per frame), so a sequence of one group is coded in this process."""
+    if jobs != "auto":
+        return jobs
+    groups = -(-frames // max(intra_period, 1))
+    return max(1, min(os.cpu_count() or 1, groups))
 
 
 def _read_bytes(path: str) -> bytes:
@@ -458,9 +480,11 @@ def _sequence_args(p):
     p.add_argument("--count", type=int, help="number of frames")
 
 
-def _parallel_args(p, what: str) -> None:
+def _parallel_args(p, what: str, jobs: int | str = 1) -> None:
     g = p.add_mutually_exclusive_group()
-    g.add_argument("--jobs", type=int, default=1, help=f"{what} in parallel, in separate local processes (default 1)")
+    auto = " ('auto': one per core, at most one per group)" if jobs == "auto" else ""
+    g.add_argument("--jobs", type=_jobs if jobs == "auto" else int, default=jobs,
+                   help=f"{what} in parallel, in separate local processes{auto} (default {jobs})")
     g.add_argument("--ray", metavar="ADDRESS",
                    help=f"{what} as tasks of the Ray cluster at ADDRESS ('auto': the one this machine is part of), one "
                         'per CPU; needs pip install "dynmesh[ray]"')
@@ -535,7 +559,7 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--texture-qp", type=int, default=t["texture_qp"], help=f"texture video QP, 0-51 (default {t['texture_qp']})")
     p.add_argument("--texture-codec", choices=list(TEXTURE_CODECS), default=t["texture_codec"],
                    help=f"texture video codec: HEVC (libx265) or AV1 (libsvtav1), 10-bit 4:2:0 (default {t['texture_codec']})")
-    _parallel_args(p, "groups of --intra-period frames encoded")
+    _parallel_args(p, "groups of --intra-period frames encoded", jobs="auto")
     _common(p)
     p.set_defaults(run=cmd_encode)
 
