@@ -33,7 +33,8 @@ pub fn refit_base(base: &Mesh, schemes: &[Scheme], target: &Bvh) -> Vec<[f64; 3]
     let frames = displace::local_frames(&sub.positions, &sub.faces);
     let moves = displace::fit_displacements(&sub.positions, &sub.faces, &frames, target, false);
     let fitted: Vec<[f64; 3]> = sub.positions.iter().zip(&moves).map(|(&p, &d)| add(p, d)).collect();
-    least_squares(|x| sub.apply(x), |y| sub.apply_transposed(y), &base.positions, &fitted, ITERATIONS)
+    let transposed = sub.transposed();
+    least_squares(|x| sub.apply(x), |y| transposed.apply(y), &base.positions, &fitted, ITERATIONS)
 }
 
 /// `x` minimizing `|A x - b|^2` by conjugate gradients on `A^T A x = A^T b` from `x0`, `n`

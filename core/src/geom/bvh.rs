@@ -109,26 +109,32 @@ impl Bvh {
     /// another length than the indexed list.
     pub fn refitted(&self, positions: &[[f64; 3]], faces: &[[u32; 3]]) -> Self {
         assert_eq!(faces.len(), self.ids.len(), "Bvh::refitted: the face list it was built on");
-        let tris: Vec<[[f64; 3]; 3]> = self.ids.iter().map(|&id| faces[id as usize].map(|v| positions[v as usize])).collect();
+        let tris: Vec<[[f64; 3]; 3]> = self.ids.par_iter().map(|&id| faces[id as usize].map(|v| positions[v as usize])).collect();
         let pad = pad(&tris);
         let mut pairs = self.pairs.clone();
+        // The leaves, most of the work, on all threads; then the inner boxes, each the union
+        // of its children's (min and max are exact, so the order does not matter to the bits).
+        pairs.par_iter_mut().for_each(|pair| {
+            for s in 0..2 {
+                let (link, count) = (pair.link[s], pair.count[s]);
+                if count > 0 {
+                    let leaf = &tris[link as usize..(link + count) as usize];
+                    set_box(pair, s, leaf.iter().skip(1).fold(triangle_box(&leaf[0], pad), |acc, t| union(acc, triangle_box(t, pad))));
+                }
+            }
+        });
         // Children are pushed after their parents, so a reverse sweep meets them first.
         for p in (0..pairs.len()).rev() {
             for s in 0..2 {
                 let (link, count) = (pairs[p].link[s], pairs[p].count[s]);
-                let bx = if count > 0 {
-                    let leaf = &tris[link as usize..(link + count) as usize];
-                    leaf.iter().skip(1).fold(triangle_box(&leaf[0], pad), |acc, t| union(acc, triangle_box(t, pad)))
-                } else if p == 0 && s == 1 {
-                    continue; // the root pair's unused side
-                } else {
-                    let c = &pairs[link as usize];
-                    let side = |k: usize, j: usize| (f64::from(c.lo[k][j]), f64::from(c.hi[k][j]));
-                    let lo = [0, 1, 2].map(|k| fmin(side(k, 0).0, side(k, 1).0));
-                    let hi = [0, 1, 2].map(|k| fmax(side(k, 0).1, side(k, 1).1));
-                    (lo, hi)
-                };
-                set_box(&mut pairs[p], s, bx);
+                if count > 0 || (p == 0 && s == 1) {
+                    continue; // a leaf, done above, or the root pair's unused side
+                }
+                let c = &pairs[link as usize];
+                let side = |k: usize, j: usize| (f64::from(c.lo[k][j]), f64::from(c.hi[k][j]));
+                let lo = [0, 1, 2].map(|k| fmin(side(k, 0).0, side(k, 1).0));
+                let hi = [0, 1, 2].map(|k| fmax(side(k, 0).1, side(k, 1).1));
+                set_box(&mut pairs[p], s, (lo, hi));
             }
         }
         Self { pairs, tris, ids: self.ids.clone(), slot: self.slot.clone() }
@@ -312,7 +318,8 @@ fn better_hit(c: &LineHit, best: Option<&LineHit>) -> bool {
 /// when rounding puts a computed point or crossing an ulp outside the exact box, and when a
 /// bound is rounded to `f32` (at most 2^-24 of the largest coordinate, well under this pad).
 fn pad(corners: &[[[f64; 3]; 3]]) -> f64 {
-    let m = corners.iter().flatten().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
+    // A maximum is exact, so the parallel reduction's grouping cannot change it.
+    let m = corners.par_iter().map(|t| t.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()))).reduce(|| 0.0, f64::max);
     1e-6 * (1.0 + m)
 }
 

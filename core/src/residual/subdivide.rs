@@ -115,10 +115,28 @@ impl Subdivision {
         self.stencils.iter().fold(base.to_vec(), |p, s| s.apply(&p))
     }
 
-    /// The transpose of [`Subdivision::apply`]: `y` (one vector per subdivided vertex)
-    /// gathered back onto the base vertices.
-    pub fn apply_transposed(&self, y: &[[f64; 3]]) -> Vec<[f64; 3]> {
-        self.stencils.iter().enumerate().rev().fold(y.to_vec(), |g, (i, s)| s.apply_transposed(&g, self.lod_offsets[i + 1]))
+    /// The transpose of [`Subdivision::apply`], built once for repeated use (the base refit
+    /// applies it at every conjugate-gradient iteration).
+    pub fn transposed(&self) -> Transposed {
+        let levels = self.stencils.iter().enumerate().rev().map(|(i, s)| s.transposed(self.lod_offsets[i + 1])).collect();
+        Transposed { levels }
+    }
+}
+
+/// The transpose of a [`Subdivision`]'s map from base to subdivided positions: it gathers one
+/// vector per subdivided vertex back onto the base vertices.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Transposed {
+    /// The finest level's transposed stencils first.
+    levels: Vec<Stencils>,
+}
+
+impl Transposed {
+    /// `y` (one vector per subdivided vertex) gathered onto the base vertices: each base
+    /// vector is the weighted sum of the subdivided vectors that its stencils reach, summed
+    /// in ascending vertex order, as a scatter in vertex order would sum them.
+    pub fn apply(&self, y: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        self.levels.iter().fold(y.to_vec(), |g, s| s.apply(&g))
     }
 }
 
@@ -162,18 +180,28 @@ impl Stencils {
             .collect()
     }
 
-    /// The transpose of [`Stencils::apply`] onto `n` vertices of the previous level.
-    pub fn apply_transposed(&self, y: &[[f64; 3]], n: usize) -> Vec<[f64; 3]> {
-        let mut g = vec![[0.0; 3]; n];
-        for (v, yv) in y.iter().enumerate() {
+    /// The stencils of the transpose onto the `n` vertices of the previous level: row `u`
+    /// holds `(v, w)` for each entry `(u, w)` of row `v`, in ascending `v` (and row order
+    /// within a row), so that [`Stencils::apply`] on it sums what a scatter of the rows in
+    /// order would, in the same order, and on all threads.
+    fn transposed(&self, n: usize) -> Stencils {
+        let mut starts = vec![0u32; n + 1];
+        for &(u, _) in &self.entries {
+            starts[u as usize + 1] += 1;
+        }
+        for u in 0..n {
+            starts[u + 1] += starts[u];
+        }
+        let mut next = starts.clone();
+        let mut entries = vec![(0u32, 0.0); self.entries.len()];
+        for v in 0..self.rows() {
             for &(u, w) in self.row(v) {
-                let t = &mut g[u as usize];
-                for k in 0..3 {
-                    t[k] += w * yv[k];
-                }
+                let slot = &mut next[u as usize];
+                entries[*slot as usize] = (v as u32, w);
+                *slot += 1;
             }
         }
-        g
+        Stencils { starts, entries }
     }
 }
 
@@ -472,8 +500,20 @@ mod tests {
         let x: Vec<[f64; 3]> = (0..4).map(|i| [i as f64, 1.0 - i as f64, 0.5 * i as f64]).collect();
         let y: Vec<[f64; 3]> = (0..s.positions.len()).map(|i| [(i % 5) as f64, (i % 3) as f64 - 1.0, 0.25]).collect();
         let dot = |a: &[[f64; 3]], b: &[[f64; 3]]| a.iter().zip(b).map(|(p, q)| p[0] * q[0] + p[1] * q[1] + p[2] * q[2]).sum::<f64>();
-        let (lhs, rhs) = (dot(&s.apply(&x), &y), dot(&x, &s.apply_transposed(&y)));
+        let gathered = s.transposed().apply(&y);
+        let (lhs, rhs) = (dot(&s.apply(&x), &y), dot(&x, &gathered));
         assert!((lhs - rhs).abs() < 1e-9 * lhs.abs().max(1.0), "{lhs} vs {rhs}");
+        // Summed as a scatter in vertex order sums: the same bits.
+        let scattered = s.stencils.iter().enumerate().rev().fold(y.clone(), |g, (i, st)| {
+            let mut out = vec![[0.0; 3]; s.lod_offsets[i + 1]];
+            for (v, yv) in g.iter().enumerate() {
+                for &(u, w) in st.row(v) {
+                    (0..3).for_each(|k| out[u as usize][k] += w * yv[k]);
+                }
+            }
+            out
+        });
+        assert_eq!(gathered, scattered);
     }
 
     #[test]
