@@ -108,7 +108,8 @@ def cmd_encode(a) -> dict:
     if texture_option is True and not all(textured):
         raise ValueError(f"frame {textured.index(False)}: texture coding asks for UVs and a texture image on every frame")
     use_texture = all(textured) if texture_option == "auto" else texture_option
-    jobs = _encode_jobs(a.jobs, len(paths), options["intra_period"])
+    # With a Ray cluster its CPUs are the workers: no local processes.
+    jobs = 1 if a.ray is not None else _encode_jobs(a.jobs, len(paths), options["intra_period"])
     with _progress(len(paths), "encoding", a.quiet) as bar:
         if jobs == 1 and a.ray is None:
             result = api.encode_frames((parallel.read_again(p) for p in paths), on_frame=lambda i, s: bar.update(),
@@ -436,8 +437,6 @@ def cmd_eval(a) -> dict:
 def _check_jobs(a) -> None:
     if a.jobs != "auto" and a.jobs < 1:
         raise CliError(f"--jobs must be at least 1 or auto, got {a.jobs}")
-    if a.jobs == "auto" and a.ray is not None:
-        a.jobs = 1  # the cluster's CPUs are the workers
 
 
 def _jobs(text: str) -> int | str:
