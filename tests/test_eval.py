@@ -183,7 +183,7 @@ def test_end_to_end_resume_change_and_force(experiment, tmp_path, count_encodes)
     assert {p.name: p.stat().st_mtime_ns for p in (out / "runs").iterdir()} == stamps
 
     # A changed option reruns exactly the runs it belongs to.
-    experiment.write_text(EXPERIMENT.format(dm_extra=", subdiv = 2"))
+    experiment.write_text(EXPERIMENT.format(dm_extra=", subdiv = 3"))
     assert eval_cli(experiment, "--out", out) == 0
     assert count_encodes == {"dynmesh": 4, "draco": 2}
     experiment.write_text(EXPERIMENT.format(dm_extra=""))

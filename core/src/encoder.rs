@@ -112,7 +112,7 @@ impl Default for EncoderConfig {
         Self {
             qp: 28,
             base_ratio: None,
-            subdiv_iterations: 3,
+            subdiv_iterations: 2,
             scheme: SchemeChoice::Mixed,
             bits: 12,
             base_bits: 9,
@@ -193,17 +193,18 @@ pub const MAX_REFERENCES: u32 = decoder::CACHED_STATES as u32;
 
 /// The base mesh size that suits displacements quantized with `qp`: coarse displacements
 /// (high QP) go with a small base mesh, fine ones pay for a larger base mesh that follows
-/// the input closer. Chosen by a sweep over base ratio (3 to 20 %), base bits (8 to 11) and
-/// QP (20 to 36) on the first 6 frames of four capture sequences, against the MPEG test
-/// model's points (docs/results.md): 6 % was best from about 74 to 76 dB D1, 12 % above;
-/// below, a re-run with 4 % too (2026-12-03, QP 20-36 in steps of 2) found 4 % from QP 30
-/// on best (D1 BD-rate against the test model -9.3 -> -10.9 % on basketball_player, -5.4
-/// -> -6.6 % dancer, -7.1 -> -7.0 % mitch, -15.6 -> -16.1 % thomas); a third fewer output
-/// faces at those rates, so encoding and decoding are faster too.
+/// the input closer. Chosen by sweeps over base ratio (3 to 20 %), base bits (8 to 11),
+/// subdivision iterations (2, 3) and QP (20 to 36 in steps of 2) on the first 6 frames of
+/// four capture sequences, against the MPEG test model's points (docs/results.md). With
+/// the default two iterations, 12 % below QP 26, 9 % to 29 and 6 % from 30 was best on all
+/// four (2026-12-03, D1 BD-rate against the test model with three iterations and 12 / 6 / 4 %
+/// -> two and these: -10.9 -> -12.5 % basketball_player, -6.6 -> -8.9 % dancer, -7.0 ->
+/// -10.8 % mitch, -16.1 -> -18.1 % thomas); with a quarter of the output faces, encoding
+/// and decoding are faster too.
 pub fn base_ratio_for_qp(qp: i32) -> f64 {
     match qp {
-        30.. => 0.04,
-        26..=29 => 0.06,
+        30.. => 0.06,
+        26..=29 => 0.09,
         _ => 0.12,
     }
 }
