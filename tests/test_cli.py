@@ -66,6 +66,30 @@ def test_every_command_has_help():
         assert "usage" in run(cmd, "--help").stdout
 
 
+def test_base_ratio_help_states_the_encoders_rule():
+    # The rule is read from the core: each run it names holds the ratio the core takes there,
+    # and the help and the README state it in the same words.
+    from pathlib import Path
+
+    from dynmesh import _core
+    from dynmesh.defaults import QP_RANGE, base_ratio_rule
+
+    rule = base_ratio_rule()
+    runs = rule.split(", ")
+    assert len(runs) >= 2 and runs[0].split()[1:3] == ["up", "to"] and runs[-1].split()[1] == "from"
+    last_qp = QP_RANGE[0] - 1
+    for words in runs[:-1]:
+        ratio, end = float(words.split()[0]), int(words.split()[-1])
+        assert {_core.base_ratio_for_qp(q) for q in range(last_qp + 1, end + 1)} == {ratio}
+        assert _core.base_ratio_for_qp(end + 1) != ratio
+        last_qp = end
+    ratio, start = float(runs[-1].split()[0]), int(runs[-1].split()[-1])
+    assert start == last_qp + 1 and {_core.base_ratio_for_qp(q) for q in range(start, QP_RANGE[1] + 1)} == {ratio}
+    assert rule in " ".join(run("encode", "--help").stdout.split())
+    readme = Path(__file__).resolve().parents[1] / "README.md"
+    assert rule in " ".join(readme.read_text().split())
+
+
 def test_encode_flags_are_the_encoder_options():
     # Every option the core names has a flag, and the flags' defaults are the core's defaults.
     from dynmesh import cli

@@ -8,7 +8,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use pyo3::IntoPyObjectExt;
 
-use dynmesh::encoder::{EncoderConfig, LiftingChoice};
+use dynmesh::encoder::{self, EncoderConfig, LiftingChoice};
+use dynmesh::residual::quantize::QP_RANGE;
 use dynmesh::inter::anchor::AnchorStages;
 use dynmesh::residual::quantize::AqParams;
 use dynmesh::residual::subdivide::SchemeChoice;
@@ -137,9 +138,18 @@ pub fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     Ok(d)
 }
 
+/// The base mesh ratio the encoder takes at `qp` when none is given
+/// ([`encoder::base_ratio_for_qp`]), so that the command line's help can state the rule.
+#[pyfunction]
+pub fn base_ratio_for_qp(qp: i32) -> f64 {
+    encoder::base_ratio_for_qp(qp)
+}
+
 /// Registers the option functions and the names of the choice options.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(default_options, m)?)?;
+    m.add_function(wrap_pyfunction!(base_ratio_for_qp, m)?)?;
+    m.add("QP_RANGE", (*QP_RANGE.start(), *QP_RANGE.end()))?;
     m.add("INTER_MODES", inter_modes())?;
     m.add("LIFTINGS", LiftingChoice::NAMES.to_vec())?;
     Ok(())

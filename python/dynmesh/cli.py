@@ -11,7 +11,7 @@ from pathlib import Path
 
 # The API, numpy and the file readers are imported by the commands that use them:
 # `dynmesh decode` needs none of them, and importing them would cost it more than decoding.
-from .defaults import ENCODER, INTER_MODES, LIFTINGS, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS
+from .defaults import ENCODER, INTER_MODES, LIFTINGS, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS, base_ratio_rule
 from .io import StagedDirectory, mesh_inputs, refuse_inputs, resolve_sequence
 
 
@@ -505,7 +505,7 @@ def parser() -> argparse.ArgumentParser:
     _sequence_args(p)
     p.add_argument("--qp", type=int, default=d["qp"], help=f"displacement quantization parameter; +6 doubles the step (default {d['qp']})")
     p.add_argument("--base-ratio", type=float, default=d["base_ratio"],
-                   help="base mesh faces / input faces (default: follows --qp, 0.12 up to QP 25, 0.09 to 29, 0.06 from 30)")
+                   help=f"base mesh faces / input faces (default: follows --qp, {base_ratio_rule()})")
     p.add_argument("--subdiv", type=int, default=d["subdiv"], help=f"subdivision iterations (default {d['subdiv']})")
     p.add_argument("--scheme", default=d["scheme"],
                    help="subdivision scheme: mixed (midpoint on every iteration but the last, Loop on the last, as the "

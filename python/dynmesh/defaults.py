@@ -15,6 +15,29 @@ ENCODER: dict = dict(_core.default_options())
 INTER_MODES: tuple = tuple(_core.INTER_MODES)
 LIFTINGS: tuple = tuple(_core.LIFTINGS)
 
+#: The quantization parameters the encoder accepts, first and last.
+QP_RANGE: tuple[int, int] = tuple(_core.QP_RANGE)
+
+
+def base_ratio_rule() -> str:
+    """The encoder's base mesh ratio as a function of QP (``base_ratio`` None), in words:
+    read from the core, so that ``--help`` cannot drift from what the encoder does."""
+    first, last = QP_RANGE
+    runs: list[list] = []  # [ratio, first qp, last qp]
+    for qp in range(first, last + 1):
+        ratio = _core.base_ratio_for_qp(qp)
+        if runs and runs[-1][0] == ratio:
+            runs[-1][2] = qp
+        else:
+            runs.append([ratio, qp, qp])
+    if len(runs) == 1:
+        return f"{runs[0][0]:g} at every QP"
+    words = [f"{runs[0][0]:g} up to QP {runs[0][2]}"]
+    words += [f"{ratio:g} to {end}" for ratio, _, end in runs[1:-1]]
+    words.append(f"{runs[-1][0]:g} from {runs[-1][1]}")
+    return ", ".join(words)
+
+
 class FrameType(StrEnum):
     """A frame's type as the encoder's statistics and ``info`` give it: a string ("I", "P")
     in JSON output and tables, compared by name in code."""
