@@ -3,9 +3,11 @@
 The first ``--frames`` frames of a shared sequence (horse_gallop has 48) are encoded
 with ``--intra-period`` frames per group, so that there are groups to share out:
 
-- whole ``dynmesh encode`` processes with ``--jobs 1`` and ``--jobs 2`` (Python start-up and
-  the first pass over the files included: what a user waits for), alternated ``--repeat``
-  times in one run so that both see the same load;
+- whole ``dynmesh encode`` processes with ``--jobs 1``, ``--jobs 1`` on one thread
+  (``RAYON_NUM_THREADS=1``) and ``--jobs 2`` (Python start-up and the first pass over the
+  files included: what a user waits for), alternated ``--repeat`` times in one run so that
+  all see the same load, and the least time 2 processes can take on 2 cores given the CPU
+  seconds ``--jobs 1`` spends;
 - in this process, ``dynmesh.parallel.encode_to_file`` on a local Ray cluster of 2 CPUs
   started here (``ray.init(num_cpus=2)``; its start and the first run, which starts the
   workers, are not timed), beside the sequential encoder and 2 local processes in the same
@@ -45,27 +47,37 @@ def children_cpu() -> float:
     return r.ru_utime + r.ru_stime
 
 
-def command_seconds(args: list[str]) -> tuple[float, float]:
-    """(wall seconds, CPU seconds of it and its children) of one ``dynmesh`` process."""
+def command_seconds(args: list[str], env: dict | None = None) -> tuple[float, float]:
+    """(wall seconds, CPU seconds of it and its children) of one ``dynmesh`` process, run
+    with ``env`` added to this process's environment."""
     wall, cpu = time.perf_counter(), children_cpu()
-    subprocess.run([sys.executable, "-m", "dynmesh", *args], check=True, stdout=subprocess.DEVNULL)
+    subprocess.run([sys.executable, "-m", "dynmesh", *args], check=True, stdout=subprocess.DEVNULL,
+                   env={**os.environ, **(env or {})})
     return time.perf_counter() - wall, children_cpu() - cpu
 
 
-def cli_rows(seq: Path, a, out: Path) -> tuple[list[dict], float]:
-    """Rows for ``dynmesh encode --jobs 1`` and ``--jobs 2``, and the ratio of their times."""
-    runs = {1: [], 2: []}
+def cli_rows(seq: Path, a, out: Path) -> tuple[list[dict], float, float]:
+    """Rows for ``dynmesh encode --jobs 1``, ``--jobs 1`` on one thread and ``--jobs 2``, the
+    ratio of the ``--jobs 2`` and ``--jobs 1`` times, and the least that ratio can be here."""
+    one_thread = {"RAYON_NUM_THREADS": "1"}
+    kinds = {"1": ("1", None), "1t": ("1", one_thread), "2": ("2", None)}
+    runs = {kind: [] for kind in kinds}
     for _ in range(a.repeat):
-        for jobs in (1, 2):
-            runs[jobs].append(command_seconds(["encode", str(seq), "--count", str(a.frames), "--intra-period",
-                                               str(a.intra_period), "--jobs", str(jobs), "-o", str(out / f"cli{jobs}.dmsh"),
-                                               "-q"]))
-    if (out / "cli1.dmsh").read_bytes() != (out / "cli2.dmsh").read_bytes():
-        raise SystemExit("--jobs 2 wrote another stream than --jobs 1")
-    (one, cpu1), (two, cpu2) = min(runs[1]), min(runs[2])
-    print(f"dynmesh encode (wall, CPU s): --jobs 1 {runs[1]}, --jobs 2 {runs[2]}", flush=True)
+        for kind, (jobs, env) in kinds.items():
+            runs[kind].append(command_seconds(["encode", str(seq), "--count", str(a.frames), "--intra-period",
+                                               str(a.intra_period), "--jobs", jobs, "-o", str(out / f"cli{kind}.dmsh"),
+                                               "-q"], env))
+    if len({(out / f"cli{kind}.dmsh").read_bytes() for kind in kinds}) != 1:
+        raise SystemExit("--jobs 2 or one thread wrote another stream than --jobs 1")
+    (one, cpu1), (thread, cpu1t), (two, cpu2) = (min(runs[kind]) for kind in kinds)
+    print(f"dynmesh encode (wall, CPU s): {runs}", flush=True)
     how = "`dynmesh encode --jobs N`"
-    return [row(how, 1, one, one, a.frames, cpu1), row(how, 2, two, one, a.frames, cpu2)], two / one
+    # Two processes cannot use more than the 2 cores: at best they do --jobs 1's CPU work in
+    # half its CPU seconds of wall time.
+    floor = cpu1 / len(os.sched_getaffinity(0)) / one
+    rows = [row(how, 1, one, one, a.frames, cpu1), row(f"{how}, one thread (`RAYON_NUM_THREADS=1`)", 1, thread, one,
+                                                       a.frames, cpu1t), row(how, 2, two, one, a.frames, cpu2)]
+    return rows, two / one, floor
 
 
 def row(how: str, workers: int, seconds: float, one: float, frames: int, cpu: float) -> dict:
@@ -155,7 +167,7 @@ def main() -> int:
     paths = resolve_sequence(str(seq), None, a.frames)
     load = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as tmp:
-        cli, ratio = cli_rows(seq, a, Path(tmp))
+        cli, ratio, floor = cli_rows(seq, a, Path(tmp))
         measured = in_process_runs(paths, a, Path(tmp))
         stream_bytes = (Path(tmp) / "seq.dmsh").stat().st_size
     groups = -(-len(paths) // a.intra_period)
@@ -172,7 +184,11 @@ def main() -> int:
             "(one CPU per task). Cores obtained: CPU seconds of the "
             "encoder's processes over wall seconds, the share of the 2 cores the encode got; the kernel shares "
             "the CPU between sessions (autogroup), so on a machine busy with other sessions a second process "
-            f"gets no more CPU, only a share of the same.\n\n`--jobs 2` takes {ratio:.2f} of the time of `--jobs 1`.\n\n"
+            f"gets no more CPU, only a share of the same.\n\n`--jobs 2` takes {ratio:.2f} of the time of `--jobs 1`. "
+            f"The sequential encoder already obtains {cli[0]['cores']:.2f} of the 2 cores, so 2 processes, doing the same "
+            f"CPU work, can take no less than {floor:.2f} of its time here (its CPU seconds over 2, over its wall "
+            f"seconds); on one thread it takes {cli[1]['seconds'] / cli[0]['seconds']:.2f} of --jobs 1's time, and "
+            f"`--jobs 2` is {cli[1]['seconds'] / cli[2]['seconds'] / 2:.0%} efficient against it.\n\n"
             + markdown_table(rows, COLUMNS) + "\n\n" + capacity(measured, groups, len(paths), stream_bytes))
     print(body)
     if not a.no_write:
