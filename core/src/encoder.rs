@@ -481,9 +481,8 @@ impl SequenceEncoder {
 
     /// The frame predicted from `r`, `distance` frames back, with its base moved to `anchor`.
     fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], target: &Bvh) -> Result<Candidate, InputError> {
-        let mut enc = ec::Encoder::new();
-        motion::encode_motion(&mut enc, &r.state.base, anchor, &r.state.faces);
-        let head = Head { frame_type: FrameType::Predicted, reference_distance: distance, base_block: enc.finish() };
+        let base_block = motion::encode_motion(&r.state.base, anchor, &r.state.faces);
+        let head = Head { frame_type: FrameType::Predicted, reference_distance: distance, base_block };
         self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some(&r.state.coefficients))
     }
 

@@ -172,9 +172,7 @@ pub fn seeds() -> Vec<(&'static str, Vec<u8>)> {
         let (p, f) = context_mesh(b);
         out.push(("base", [&[CONTEXT_BITS as u8 - 1][..], &coder::encode_base(&p, &f, CONTEXT_BITS)].concat()));
         let moved: Vec<[u32; 3]> = p.iter().map(|q| [q[0].saturating_sub(3), q[1].saturating_sub(2), q[2]]).collect();
-        let mut enc = ec::Encoder::new();
-        motion::encode_motion(&mut enc, &p, &moved, &f);
-        out.push(("motion", [&[b][..], &enc.finish()].concat()));
+        out.push(("motion", [&[b][..], &motion::encode_motion(&p, &moved, &f)].concat()));
         let uv: Vec<[u32; 2]> = p.iter().map(|q| [q[0], q[1]]).collect();
         out.push(("uv", [&[b, CONTEXT_BITS as u8 - 1][..], &uvcoder::encode_uv(&f, &f, &uv, CONTEXT_BITS)].concat()));
         let c = b | 0x40;

@@ -6,6 +6,7 @@ import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
 import { Decoder } from '../src/index.js';
 import { readPayload } from '../src/decoder.js';
+import { RangeDecoder, bitModels } from '../src/stream/ec.js';
 import { frameHash } from '../src/hash.js';
 import { frameUvs } from '../src/texture/unit.js';
 import { createHash } from 'node:crypto';
@@ -48,13 +49,19 @@ for (const [stream, levels] of Object.entries(uvManifest)) {
   });
 }
 
-test('the vectors hold intra frames and predicted frames of both coefficient modes', () => {
+test('the vectors hold intra frames, predicted frames of both coefficient modes and both motion predictors', () => {
   const kinds = new Set();
   for (const stream of Object.keys(manifest)) {
     const dec = new Decoder(new Uint8Array(readFileSync(DIR + stream)));
-    dec.units.forEach((u, i) => kinds.add(u.type === 0 ? 'I' : `P${readPayload(dec.data, u, i).coefficientsPredicted ? 1 : 0}`));
+    dec.units.forEach((u, i) => {
+      if (u.type === 0) return kinds.add('I');
+      const p = readPayload(dec.data, u, i);
+      kinds.add(`P${p.coefficientsPredicted ? 1 : 0}`);
+      // The motion block's first bit selects its predictor (docs/bitstream.md section 6.5).
+      kinds.add(new RangeDecoder(p.base).bit(bitModels(1), 0) ? 'affine' : 'mean');
+    });
   }
-  assert.deepEqual([...kinds].sort(), ['I', 'P0', 'P1']);
+  assert.deepEqual([...kinds].sort(), ['I', 'P0', 'P1', 'affine', 'mean']);
 });
 
 test('an untextured stream has no UVs', () => {
