@@ -31,6 +31,18 @@ def test_turning_gears_are_predicted_once_their_parts_are_aligned_rigidly():
     assert d1_rigid > d1_intra - 1.5
 
 
+def test_gears_turning_20_degrees_a_frame_are_predicted_from_an_intra_frame():
+    # Coarse base rims turned by 20 degrees: ICP from no motion stalls or turns the wrong way,
+    # and an intra reference has no previous motion to start from, so only the screened
+    # turned starts (anchor::rigid) find the turn. Before them every frame was coded intra.
+    frames = gear_sequence(4, turn_degrees=20.0, samples=600)
+    intra, d1_intra = _encode(frames, intra_period=1)
+    inter, d1_inter = _encode(frames)
+    assert "".join(f["type"] for f in inter.frames) == "IPPP"
+    assert len(inter.data) < 0.6 * len(intra.data)
+    assert d1_inter > d1_intra - 1.0
+
+
 def _warped(frames):
     from dynmesh.synth import synth_sequence
 
