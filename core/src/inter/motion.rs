@@ -178,12 +178,9 @@ fn div_round(a: i64, b: i64) -> i64 {
 /// must have the same length.
 pub fn encode_motion(reference: &[[u32; 3]], current: &[[u32; 3]], faces: &[[u32; 3]]) -> Vec<u8> {
     assert_eq!(reference.len(), current.len(), "motion needs the reference's vertices");
-    let block = |predictor| {
-        let mut enc = ec::Encoder::new();
-        code_motion(&mut EncSide(&mut enc), Some(predictor), reference, Some(current), faces, u32::MAX.into());
-        enc.finish()
-    };
-    let (mean, affine) = (block(Predictor::NeighbourMean), block(Predictor::LocalAffine));
+    let adjacency = Adjacency::new(reference.len(), faces);
+    let mean = block(Predictor::NeighbourMean, reference, current, &adjacency);
+    let affine = block(Predictor::LocalAffine, reference, current, &adjacency);
     if affine.len() < mean.len() {
         affine
     } else {
@@ -191,48 +188,55 @@ pub fn encode_motion(reference: &[[u32; 3]], current: &[[u32; 3]], faces: &[[u32
     }
 }
 
+/// The motion block of `current` with `predictor`.
+fn block(predictor: Predictor, reference: &[[u32; 3]], current: &[[u32; 3]], adjacency: &Adjacency) -> Vec<u8> {
+    let mut enc = ec::Encoder::new();
+    code_motion(&mut EncSide(&mut enc), Some((predictor, current)), reference, adjacency, u32::MAX.into());
+    enc.finish()
+}
+
 /// Decodes what [`encode_motion`] wrote: the current positions of the reference's vertices
 /// on a grid of `bits` bits. An error if the data is truncated, corrupt, or moves a vertex
 /// off the grid; the caller adds where.
 pub fn decode_motion(dec: &mut ec::Decoder, reference: &[[u32; 3]], faces: &[[u32; 3]], bits: u32) -> Result<Vec<[u32; 3]>, Corrupt> {
     let corrupt = || Corrupt::from("base mesh motion is truncated or corrupt");
-    let current = code_motion(&mut DecSide(dec), None, reference, None, faces, (1i64 << bits) - 1).ok_or_else(corrupt)?;
+    let adjacency = Adjacency::new(reference.len(), faces);
+    let current = code_motion(&mut DecSide(dec), None, reference, &adjacency, (1i64 << bits) - 1).ok_or_else(corrupt)?;
     dec.finish().map_err(|_| corrupt())?;
     Ok(current)
 }
 
-/// Both directions of the motion coding: the encoder passes the predictor and `current` and
-/// gets `current` back, the decoder passes `None` for both and gets what it reads, or `None`
-/// when the data runs out or moves a vertex off the grid `0..=max`.
+/// Both directions of the motion coding over the reference connectivity `adjacency`: the
+/// encoder passes its predictor and `current` and gets `current` back, the decoder passes
+/// `None` and gets what it reads, or `None` when the data runs out or moves a vertex off the
+/// grid `0..=max`.
 fn code_motion(
     side: &mut impl Side,
-    predictor: Option<Predictor>,
+    encoding: Option<(Predictor, &[[u32; 3]])>,
     reference: &[[u32; 3]],
-    current: Option<&[[u32; 3]]>,
-    faces: &[[u32; 3]],
+    adjacency: &Adjacency,
     max: i64,
 ) -> Option<Vec<[u32; 3]>> {
-    let affine = side.bit(&mut BitModel::default(), predictor == Some(Predictor::LocalAffine));
+    let affine = side.bit(&mut BitModel::default(), matches!(encoding, Some((Predictor::LocalAffine, _))));
     let n = reference.len();
-    let adjacency = Adjacency::new(n, faces);
     let mut models = Models::new();
     let mut motion = vec![None; n];
     let mut skipped = vec![false; n];
     let mut mark = vec![0u32; if affine { n } else { 0 }];
     let mut out = vec![[0u32; 3]; n];
-    for v in coding_order(&adjacency, n) {
+    for v in coding_order(adjacency, n) {
         let v = v as usize;
-        let (mean, ctx) = neighbour_mean(v, &adjacency, &motion, &skipped);
+        let (mean, ctx) = neighbour_mean(v, adjacency, &motion, &skipped);
         let pred = if affine {
-            let samples = two_ring(v, &adjacency, &motion, &mut mark);
+            let samples = two_ring(v, adjacency, &motion, &mut mark);
             let fit = (samples.len() >= AFFINE_MIN_SAMPLES).then(|| affine_at(v, &samples, reference, &motion)).flatten();
             fit.unwrap_or(mean)
         } else {
             mean
         };
         // The encoder's residual; the decoder's placeholder, which its side ignores.
-        let residual: [i64; 3] = match current {
-            Some(c) => std::array::from_fn(|k| c[v][k] as i64 - reference[v][k] as i64 - pred[k]),
+        let residual: [i64; 3] = match encoding {
+            Some((_, c)) => std::array::from_fn(|k| c[v][k] as i64 - reference[v][k] as i64 - pred[k]),
             None => [0; 3],
         };
         let skip = side.bit(&mut models.skip[ctx], residual == [0; 3]);
@@ -302,9 +306,7 @@ mod tests {
     }
 
     fn block_with(predictor: Predictor, reference: &[[u32; 3]], current: &[[u32; 3]], faces: &[[u32; 3]]) -> Vec<u8> {
-        let mut enc = ec::Encoder::new();
-        code_motion(&mut EncSide(&mut enc), Some(predictor), reference, Some(current), faces, u32::MAX.into());
-        enc.finish()
+        block(predictor, reference, current, &Adjacency::new(reference.len(), faces))
     }
 
     /// The sheet turned about (250, 250): every vertex moves differently, but the field is

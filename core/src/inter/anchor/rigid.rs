@@ -59,6 +59,10 @@ impl Rigid {
         add(self.rotate(p), self.translation)
     }
 
+    fn from_matrices(r: &Matrix3<f64>, t: &Vector3<f64>) -> Self {
+        Self { rotation: std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)])), translation: [t[0], t[1], t[2]] }
+    }
+
     /// The rotation alone (for directions).
     pub fn rotate(&self, p: [f64; 3]) -> [f64; 3] {
         let r = &self.rotation;
@@ -132,9 +136,10 @@ pub fn align_parts(reference: &Mesh, input: &Bvh, previous: Option<&[Rigid]>) ->
 /// screened turn), or no motion if none lies [`GAIN`] closer.
 fn part_motion(points: &[[f64; 3]], input: &Bvh, predicted: Option<Rigid>) -> Rigid {
     let mut best = (trimmed_cost(points, input, &Rigid::IDENTITY) * GAIN, Rigid::IDENTITY);
-    let turned = if predicted.is_none() { screened_turn(points, input) } else { None };
+    let turned = predicted.is_none().then(|| screened_turn(points, input));
+    let sample = every_kth(points, ROUND_SAMPLES);
     for start in std::iter::once(Rigid::IDENTITY).chain(predicted).chain(turned) {
-        let fitted = icp(points, input, start, ROUNDS, ROUND_SAMPLES);
+        let fitted = icp(&sample, input, start, ROUNDS);
         let cost = trimmed_cost(points, input, &fitted);
         if cost < best.0 {
             best = (cost, fitted);
@@ -153,23 +158,28 @@ const SCREEN_ROUNDS: usize = 4;
 const SCREEN_SAMPLES: usize = 128;
 
 /// The turned start ([`TURN_DEGREES`]) whose short ICP ends closest to the input, refined no
-/// further; None for a part too small to have axes.
-fn screened_turn(points: &[[f64; 3]], input: &Bvh) -> Option<Rigid> {
+/// further.
+fn screened_turn(points: &[[f64; 3]], input: &Bvh) -> Rigid {
     let n = points.len() as f64;
     let c: Vector3<f64> = points.iter().map(|&p| Vector3::from(p)).sum::<Vector3<f64>>() / n;
     let cov: Matrix3<f64> = points.iter().map(|&p| (Vector3::from(p) - c) * (Vector3::from(p) - c).transpose()).sum::<Matrix3<f64>>() / n;
     let axes = SymmetricEigen::new(cov).eigenvectors;
-    let sample: Vec<[f64; 3]> = points.iter().step_by(points.len().div_ceil(SCREEN_SAMPLES).max(1)).copied().collect();
+    let sample = every_kth(points, SCREEN_SAMPLES);
     let starts = (0..3).flat_map(|k| TURN_DEGREES.iter().map(move |&d| (k, d))).map(|(k, d)| {
         let r = Rotation3::from_axis_angle(&Unit::new_normalize(axes.column(k).into_owned()), d.to_radians());
-        let t = c - r * c;
-        Rigid { rotation: std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)])), translation: [t[0], t[1], t[2]] }
+        Rigid::from_matrices(r.matrix(), &(c - r * c))
     });
     starts
-        .map(|start| icp(&sample, input, start, SCREEN_ROUNDS, SCREEN_SAMPLES))
+        .map(|start| icp(&sample, input, start, SCREEN_ROUNDS))
         .map(|fit| (trimmed_cost(&sample, input, &fit), fit))
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(_, fit)| fit)
+        .expect("there are turns to try")
+}
+
+/// Every k-th of `points`, in order, k the least that leaves at most `most`.
+fn every_kth(points: &[[f64; 3]], most: usize) -> Vec<[f64; 3]> {
+    points.iter().step_by(points.len().div_ceil(most).max(1)).copied().collect()
 }
 
 /// Mean squared distance to the surface of the [`KEEP`] share of the moved points nearest
@@ -190,10 +200,8 @@ fn kept_limit(values: &[f64]) -> f64 {
 }
 
 /// Point-to-point iterative closest points from `start`, trimmed to [`KEEP`], at most `rounds`
-/// rounds over at most `samples` of `points`.
-fn icp(points: &[[f64; 3]], input: &Bvh, start: Rigid, rounds: usize, samples: usize) -> Rigid {
-    let sample: Vec<[f64; 3]> = points.iter().step_by(points.len().div_ceil(samples).max(1)).copied().collect();
-    let points = &sample[..];
+/// rounds.
+fn icp(points: &[[f64; 3]], input: &Bvh, start: Rigid, rounds: usize) -> Rigid {
     let mut motion = start;
     let mut hints = vec![u32::MAX; points.len()];
     let tolerance = crate::geom::mesh::bounds(points).map_or(0.0, |(lo, hi)| norm(sub(hi, lo))) * SETTLED;
@@ -244,7 +252,7 @@ pub fn best_rigid(pairs: &[Pair]) -> Option<Rigid> {
     }
     let r = v_t.transpose() * d * u.transpose();
     let t = ct - r * cs;
-    Some(Rigid { rotation: std::array::from_fn(|i| std::array::from_fn(|j| r[(i, j)])), translation: [t[0], t[1], t[2]] })
+    Some(Rigid::from_matrices(&r, &t))
 }
 
 #[cfg(test)]
