@@ -65,14 +65,18 @@ def test_reference_choice_refers_back_to_a_repeated_frame_and_decodes_bit_exactl
     decoded = list(dynmesh.decode(r.data))
     for rec, dec in zip(r.reconstructions, decoded):
         assert np.array_equal(rec.positions, dec.positions) and np.array_equal(rec.faces, dec.faces)
-    # The default tries only the previous frame.
-    assert [f["reference_distance"] for f in dynmesh.encode_frames(frames, rd_slope=100.0, qp=30).frames][1:] == [1] * 4
+    # Without reference choice every predicted frame refers to the previous one.
+    off = dynmesh.encode_frames(frames, references=1, intra_reference=False, rd_slope=100.0, qp=30)
+    assert [f["reference_distance"] for f in off.frames][1:] == [1] * 4
 
 
-def test_intra_reference_can_refer_to_the_groups_intra_frame():
+def test_a_frame_that_returns_to_the_intra_frames_pose_refers_to_it_by_default():
     a, b, c = _warped(3)
-    r = dynmesh.encode_frames([a, b, c, a], intra_reference=True, rd_slope=100.0, qp=30)
+    r = dynmesh.encode_frames([a, b, c, a], rd_slope=100.0, qp=30)
     assert [f["reference_distance"] for f in r.frames] == [0, 1, 1, 3]
+    off = dynmesh.encode_frames([a, b, c, a], intra_reference=False, rd_slope=100.0, qp=30)
+    assert [f["reference_distance"] for f in off.frames] == [0, 1, 1, 1]
+    assert len(r.data) < len(off.data)
 
 
 def test_references_out_of_range_is_a_clear_error():

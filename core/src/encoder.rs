@@ -100,10 +100,10 @@ pub struct EncoderConfig {
     /// Move each part of the reference base rigidly onto the input before the anchor's
     /// matching (`anchor::rigid`; not a stage of the paper).
     pub rigid_align: bool,
-    /// Predicted frames try the last `references` coded frames of their group as reference
-    /// (1 = the previous frame only) and keep the best by rate and distortion.
+    /// Predicted frames may refer to any of the last `references` coded frames of their
+    /// group (1 = the previous frame only): the one whose input lies closest to theirs.
     pub references: u32,
-    /// Predicted frames also try the group's latest intra frame as reference.
+    /// Predicted frames may also refer to the group's latest intra frame.
     pub intra_reference: bool,
 }
 
@@ -126,7 +126,7 @@ impl Default for EncoderConfig {
             fold_repair: true,
             rigid_align: true,
             references: 1,
-            intra_reference: false,
+            intra_reference: true,
         }
     }
 }
@@ -186,6 +186,9 @@ impl EncoderConfig {
         }
     }
 }
+
+/// Input vertices that [`SequenceEncoder::closest_reference`] measures.
+const REFERENCE_SAMPLES: usize = 1024;
 
 /// The most recent frames a predicted frame may try as its reference: as many as the
 /// decoder keeps, so that decoding in order never decodes a frame twice.
@@ -409,30 +412,50 @@ impl SequenceEncoder {
         candidates
     }
 
-    /// The best predicted candidate over the references this frame may try (None for the
-    /// first frame of a group, or when no reference can be moved onto the input), and the
-    /// seconds spent moving reference bases onto the input.
+    /// The frame predicted from the reference whose input lies closest to this one (None
+    /// for the first frame of a group, or when no reference can be moved onto the input),
+    /// and the seconds spent moving the reference's base onto the input.
     fn best_predicted(&self, input: &Mesh, target: &Bvh) -> Result<(Option<Chosen>, f64), InputError> {
         if self.frame % self.config.intra_period == 0 {
             return Ok((None, 0.0));
         }
-        let mut best: Option<Chosen> = None;
-        let mut anchor_seconds = 0.0;
-        for stored in self.reference_candidates() {
-            let r = &stored.reference;
-            let anchor_start = Instant::now();
-            let Some((moved, motion)) = self.anchor_positions(r, input, target) else { continue };
-            anchor_seconds += anchor_start.elapsed().as_secs_f64();
-            let base = self.predicted_base(r, moved, target);
-            let reference_distance = self.frame - stored.frame;
-            let candidate = self.predicted(r, reference_distance, &base, target)?;
-            let distortion = self.distortion(&candidate.reconstruction, input, target);
-            let c = Chosen { candidate, distortion, reference_distance, motion: Some(motion) };
-            if best.as_ref().map_or(true, |b| self.rd_cost(&c) < self.rd_cost(b)) {
-                best = Some(c);
+        let Some(stored) = self.closest_reference(input) else { return Ok((None, 0.0)) };
+        let r = &stored.reference;
+        let anchor_start = Instant::now();
+        let Some((moved, motion)) = self.anchor_positions(r, input, target) else { return Ok((None, 0.0)) };
+        let anchor_seconds = anchor_start.elapsed().as_secs_f64();
+        let base = self.predicted_base(r, moved, target);
+        let dead_zone = match motion {
+            Motion::Tracked(_) => quantize::TRACKED_DEAD_ZONE,
+            Motion::Anchor(_) => quantize::PREDICTED_DEAD_ZONE,
+        };
+        let reference_distance = self.frame - stored.frame;
+        let candidate = self.predicted(r, reference_distance, &base, dead_zone, target)?;
+        let distortion = self.distortion(&candidate.reconstruction, input, target);
+        Ok((Some(Chosen { candidate, distortion, reference_distance, motion: Some(motion) }), anchor_seconds))
+    }
+
+    /// Of the references this frame may try, the one whose input surface lies closest to
+    /// `input` (mean squared distance from at most [`REFERENCE_SAMPLES`] of its vertices;
+    /// the most recent on a tie), among those whose base can be moved onto it. A frame close
+    /// to its reference costs little motion and few coefficient differences, and measuring
+    /// that is far cheaper than coding the frame from each reference: horse_gallop returns
+    /// to its first pose after 24 frames, and frame 24 is then predicted from frame 0.
+    fn closest_reference(&self, input: &Mesh) -> Option<&Stored> {
+        let step = input.positions.len().div_ceil(REFERENCE_SAMPLES).max(1);
+        let distance = |s: &Stored| -> f64 {
+            let surface = &s.reference.surface;
+            input.positions.iter().step_by(step).map(|&p| surface.closest_point(p).map_or(0.0, |h| h.dist2)).sum()
+        };
+        let movable = |s: &&Stored| self.config.inter.is_some() || tracking::same_connectivity(&s.reference.input, input);
+        let mut best: Option<(&Stored, f64)> = None;
+        for s in self.reference_candidates().into_iter().filter(movable) {
+            let d = distance(s);
+            if best.map_or(true, |(_, bd)| d < bd) {
+                best = Some((s, d));
             }
         }
-        Ok((best, anchor_seconds))
+        best.map(|(s, _)| s)
     }
 
     /// The reference base mesh moved onto the current frame (grid units), if it can be,
@@ -479,25 +502,26 @@ impl SequenceEncoder {
         self.finish_candidate(head, base, faces, target, None)
     }
 
-    /// The frame predicted from `r`, `distance` frames back, with its base moved to `anchor`.
-    fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], target: &Bvh) -> Result<Candidate, InputError> {
+    /// The frame predicted from `r`, `distance` frames back, with its base moved to `anchor`,
+    /// dropping coefficient differences within `dead_zone` steps.
+    fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], dead_zone: f64, target: &Bvh) -> Result<Candidate, InputError> {
         let base_block = motion::encode_motion(&r.state.base, anchor, &r.state.faces);
         let head = Head { frame_type: FrameType::Predicted, reference_distance: distance, base_block };
-        self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some(&r.state.coefficients))
+        self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some((&r.state.coefficients, dead_zone)))
     }
 
     /// Fits, transforms, quantizes and codes the displacements of the base mesh
     /// `(base, faces)` towards `target`, and completes the payload that `head` starts. A
     /// predicted frame passes its reference's coefficients: they correspond vertex for
-    /// vertex, and the coefficients are coded as (rounded) differences from them when that
-    /// is smaller (coefficient mode 1).
+    /// vertex, and the coefficients are coded as differences from them, those within its
+    /// dead zone dropped, when that is smaller (coefficient mode 1).
     fn finish_candidate(
         &self,
         head: Head,
         base: Vec<[u32; 3]>,
         faces: Vec<[u32; 3]>,
         target: &Bvh,
-        reference_coefficients: Option<&[i32]>,
+        reference_coefficients: Option<(&[i32], f64)>,
     ) -> Result<Candidate, InputError> {
         let (h, qp) = (&self.header, self.config.qp);
         let model = FrameModel::new(h, qp, subdivided_base(h, &base, &faces, h.schemes.len()));
@@ -516,8 +540,8 @@ impl SequenceEncoder {
         };
         let mut coefficient_block = coded(&q);
         let mut coefficients_predicted = false;
-        if let Some(r) = reference_coefficients {
-            let residual = differences_from(&steps, r);
+        if let Some((r, dead_zone)) = reference_coefficients {
+            let residual = differences_from(&steps, r, dead_zone);
             let predicted = coded(&residual);
             if predicted.len() < coefficient_block.len() {
                 coefficients_predicted = true;
@@ -581,12 +605,6 @@ impl SequenceEncoder {
         self.last_intra = Some((i.candidate.payload.len(), i.distortion));
         let (p_bytes, i_bytes) = (p.candidate.payload.len(), i.candidate.payload.len());
         Ok(if self.rd_prefers(p_bytes, p.distortion, i_bytes, i.distortion) { (p, i_bytes) } else { (i, p_bytes) })
-    }
-
-    /// The cost that `rd_prefers` compares: PSNR loss in dB plus `rd_slope_db` per doubling
-    /// of the rate, up to a constant; the lower the better.
-    fn rd_cost(&self, c: &Chosen) -> f64 {
-        10.0 * c.distortion.max(f64::MIN_POSITIVE).log10() + self.config.rd_slope_db * (c.candidate.payload.len() as f64).log2()
     }
 
     /// True when a predicted frame of `p_bytes` and distortion `dp` beats an intra frame of
@@ -662,8 +680,8 @@ pub fn max_base_faces(target: usize) -> usize {
 /// reference's quantized coefficients. The difference is what gets quantized, not the
 /// coefficient: a coefficient within the dead zone of its reference's then costs nothing,
 /// where rounding it first could leave a difference of one either way.
-fn differences_from(steps: &[f64], reference: &[i32]) -> Vec<i32> {
-    steps.iter().zip(reference).map(|(&x, &r)| quantize::round_beyond_dead_zone(x - r as f64, quantize::PREDICTED_DEAD_ZONE)).collect()
+fn differences_from(steps: &[f64], reference: &[i32], dead_zone: f64) -> Vec<i32> {
+    steps.iter().zip(reference).map(|(&x, &r)| quantize::round_beyond_dead_zone(x - r as f64, dead_zone)).collect()
 }
 
 #[cfg(test)]
@@ -691,7 +709,7 @@ mod tests {
     fn differences_within_the_dead_zone_of_the_reference_are_zero() {
         // 2.6 rounds to 2 on its own (dead zone), which would leave -1 against a reference of 3.
         // Beyond the dead zone (one step) differences are rounded as intra coefficients are.
-        assert_eq!(differences_from(&[2.6, -0.2, 5.0, -4.9, 7.7], &[3, 0, 3, -3, 2]), vec![0, 0, 2, -2, 6]);
+        assert_eq!(differences_from(&[2.6, -0.2, 5.0, -4.9, 7.7], &[3, 0, 3, -3, 2], 1.0), vec![0, 0, 2, -2, 6]);
     }
 
     #[test]

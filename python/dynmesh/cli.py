@@ -531,11 +531,11 @@ def parser() -> argparse.ArgumentParser:
                    help="move each connected part of the reference base rigidly onto the input (ICP, predicted from the "
                         "previous frame's motion) before the anchor's matching (not in the paper; default: %(default)s)")
     p.add_argument("--references", type=int, default=d["references"], metavar="N",
-                   help="reference choice: a predicted frame tries each of the last N coded frames of its group as "
-                        "reference and keeps the best by rate and distortion; each costs about one more "
-                        f"encoding of the frame (1 to {MAX_REFERENCES}; default {d['references']}: the previous frame)")
+                   help="reference choice: a predicted frame may refer to any of the last N coded frames of its group, "
+                        "and is predicted from the one whose input lies closest to its own "
+                        f"(1 to {MAX_REFERENCES}; default {d['references']}: the previous frame)")
     p.add_argument("--intra-reference", action=argparse.BooleanOptionalAction, default=d["intra_reference"],
-                   help="reference choice: also try the group's latest intra frame as reference (default: %(default)s)")
+                   help="reference choice: the group's latest intra frame may be the reference too (default: %(default)s)")
     p.add_argument("--rd-slope", type=float, default=d["rd_slope"],
                    help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
                         f"intra (default {d['rd_slope']:g})")

@@ -6,7 +6,8 @@
 //! vertices through the inverse transform, so they are quantized more finely. Rounding has a
 //! dead zone: magnitudes are rounded down unless their fraction reaches `1 - ROUNDING_BIAS`.
 //! A predicted frame's differences from its reference's coefficients have a wider dead zone,
-//! [`PREDICTED_DEAD_ZONE`] steps, and are rounded as intra coefficients beyond it.
+//! [`PREDICTED_DEAD_ZONE`] steps ([`TRACKED_DEAD_ZONE`] for a tracked base), and are rounded
+//! as intra coefficients beyond it.
 
 use crate::geom::mesh::Adjacency;
 
@@ -31,6 +32,14 @@ pub const ROUNDING_BIAS: f64 = 1.0 / 3.0;
 /// basketball_player, -0.3 % dancer, -2.3 % mitch, -1.0 % thomas, -1.1 % horse_gallop (QP
 /// 22-34, 6 frames, defaults otherwise).
 pub const PREDICTED_DEAD_ZONE: f64 = 1.0;
+/// The dead zone of a predicted frame whose base was tracked on an input of the reference's
+/// connectivity: its base vertices stay on their material points, so its coefficients
+/// repeat the reference's closer than an anchored base's do, and more of the differences
+/// are noise. horse_gallop (32 frames, QP 34-22), D1 BD-rate against all-intra with a
+/// dead zone of 1 / 1.5 / 2 / 3 steps: -46.1 / -48.2 / -49.1 / -48.5 %. The same choice made
+/// per frame by the rate-distortion cost between 1 and 2 steps gave -49.1 % on horse_gallop
+/// but lost 0.8-2.7 points on three capture sequences.
+pub const TRACKED_DEAD_ZONE: f64 = 2.0;
 
 /// Scale (inverse step) of each level of detail for `qp` and position bit depth `bits`.
 pub fn lod_scales(qp: i32, bits: u32, lod_count: usize) -> Vec<f64> {
