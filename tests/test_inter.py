@@ -43,6 +43,14 @@ def test_gears_turning_20_degrees_a_frame_are_predicted_from_an_intra_frame():
     assert d1_inter > d1_intra - 1.0
 
 
+def test_gears_turned_by_about_a_tooth_refer_to_the_previous_frame():
+    # Turned 24 degrees, a gear with teeth every 30 degrees lies closer to itself unturned
+    # than to its last frame (12 degrees back), but the turn is known only from the last frame.
+    frames = gear_sequence(3, turn_degrees=12.0, samples=600)
+    r = dynmesh.encode_frames(frames, qp=28)
+    assert [f["reference_distance"] for f in r.frames] == [0, 1, 1]
+
+
 def _warped(frames):
     from dynmesh.synth import synth_sequence
 

@@ -13,7 +13,7 @@ use crate::error::InputError;
 use crate::geom::bvh::Bvh;
 use crate::geom::grid::{Grid, BITS_RANGE};
 use crate::geom::limits;
-use crate::geom::mesh::{cross, norm, sub, Mesh};
+use crate::geom::mesh::{cross, dot, norm, sub, Mesh};
 use crate::geom::weld::weld;
 use crate::inter::anchor::{self, AnchorParams, AnchorStages, ReferenceBase, Rigid};
 use crate::inter::motion;
@@ -435,21 +435,32 @@ impl SequenceEncoder {
         Ok((Some(Chosen { candidate, distortion, reference_distance, motion: Some(motion) }), anchor_seconds))
     }
 
-    /// Of the references this frame may try, the one whose input surface lies closest to
-    /// `input` (mean squared distance from at most [`REFERENCE_SAMPLES`] of its vertices;
-    /// the most recent on a tie), among those whose base can be moved onto it. A frame close
-    /// to its reference costs little motion and few coefficient differences, and measuring
-    /// that is far cheaper than coding the frame from each reference: horse_gallop returns
-    /// to its first pose after 24 frames, and frame 24 is then predicted from frame 0.
+    /// Of the references this frame may try, the one whose input lies closest to `input`:
+    /// the previous coded frame, or an older one whose input has this input's connectivity
+    /// and moved less to it (mean squared motion of at most [`REFERENCE_SAMPLES`] vertices
+    /// against the previous frame's, which is measured to its surface when the connectivity
+    /// changed; the most recent on a tie). A frame close to its reference costs little motion
+    /// and few coefficient differences, and measuring that is far cheaper than coding the
+    /// frame from each reference: horse_gallop returns to its first pose after 24 frames, and
+    /// frame 24 is then predicted from frame 0. Older references of another connectivity
+    /// are not tried: the distance between surfaces took a gear turned by two teeth less one
+    /// frame's turn for a closer reference than the previous frame, from which the turn is
+    /// known.
     fn closest_reference(&self, input: &Mesh) -> Option<&Stored> {
         let step = input.positions.len().div_ceil(REFERENCE_SAMPLES).max(1);
+        let sampled = || input.positions.iter().enumerate().step_by(step);
+        let same = |s: &Stored| tracking::same_connectivity(&s.reference.input, input);
         let distance = |s: &Stored| -> f64 {
-            let surface = &s.reference.surface;
-            input.positions.iter().step_by(step).map(|&p| surface.closest_point(p).map_or(0.0, |h| h.dist2)).sum()
+            let r = &s.reference;
+            if same(s) {
+                sampled().map(|(v, &p)| sub(p, r.input.positions[v])).map(|d| dot(d, d)).sum()
+            } else {
+                sampled().map(|(_, &p)| r.surface.closest_point(p).map_or(0.0, |h| h.dist2)).sum()
+            }
         };
-        let movable = |s: &&Stored| self.config.inter.is_some() || tracking::same_connectivity(&s.reference.input, input);
+        let tried = self.reference_candidates().into_iter().enumerate().filter(|&(i, s)| same(s) || (i == 0 && self.config.inter.is_some()));
         let mut best: Option<(&Stored, f64)> = None;
-        for s in self.reference_candidates().into_iter().filter(movable) {
+        for (_, s) in tried {
             let d = distance(s);
             if best.map_or(true, |(_, bd)| d < bd) {
                 best = Some((s, d));

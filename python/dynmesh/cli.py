@@ -532,7 +532,8 @@ def parser() -> argparse.ArgumentParser:
                         "previous frame's motion) before the anchor's matching (not in the paper; default: %(default)s)")
     p.add_argument("--references", type=int, default=d["references"], metavar="N",
                    help="reference choice: a predicted frame may refer to any of the last N coded frames of its group, "
-                        "and is predicted from the one whose input lies closest to its own "
+                        "and is predicted from the one whose input lies closest to its own (an older one only if its input "
+                        "has the frame's connectivity) "
                         f"(1 to {MAX_REFERENCES}; default {d['references']}: the previous frame)")
     p.add_argument("--intra-reference", action=argparse.BooleanOptionalAction, default=d["intra_reference"],
                    help="reference choice: the group's latest intra frame may be the reference too (default: %(default)s)")
