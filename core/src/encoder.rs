@@ -101,9 +101,10 @@ pub struct EncoderConfig {
     /// matching (`anchor::rigid`; not a stage of the paper).
     pub rigid_align: bool,
     /// Predicted frames may refer to any of the last `references` coded frames of their
-    /// group (1 = the previous frame only): the one whose input lies closest to theirs.
+    /// group (1 = the previous frame only); which one, `SequenceEncoder::closest_reference`
+    /// says (an older one only when its input has the frame's connectivity).
     pub references: u32,
-    /// Predicted frames may also refer to the group's latest intra frame.
+    /// Predicted frames may also refer to the group's latest intra frame (same rule).
     pub intra_reference: bool,
 }
 
