@@ -270,6 +270,16 @@ enum Motion {
     Anchor(Option<Vec<Rigid>>),
 }
 
+impl Motion {
+    /// The dead zone of the coefficient differences of a frame whose base moved this way.
+    fn dead_zone(&self) -> f64 {
+        match self {
+            Self::Tracked(_) => quantize::TRACKED_DEAD_ZONE,
+            Self::Anchor(_) => quantize::PREDICTED_DEAD_ZONE,
+        }
+    }
+}
+
 /// A candidate with what the decision needs and the next frames reuse.
 struct Chosen {
     candidate: Candidate,
@@ -426,12 +436,8 @@ impl SequenceEncoder {
         let Some((moved, motion)) = self.anchor_positions(r, input, target) else { return Ok((None, 0.0)) };
         let anchor_seconds = anchor_start.elapsed().as_secs_f64();
         let base = self.predicted_base(r, moved, target);
-        let dead_zone = match motion {
-            Motion::Tracked(_) => quantize::TRACKED_DEAD_ZONE,
-            Motion::Anchor(_) => quantize::PREDICTED_DEAD_ZONE,
-        };
         let reference_distance = self.frame - stored.frame;
-        let candidate = self.predicted(r, reference_distance, &base, dead_zone, target)?;
+        let candidate = self.predicted(r, reference_distance, &base, motion.dead_zone(), target)?;
         let distortion = self.distortion(&candidate.reconstruction, input, target);
         Ok((Some(Chosen { candidate, distortion, reference_distance, motion: Some(motion) }), anchor_seconds))
     }
@@ -448,21 +454,26 @@ impl SequenceEncoder {
     /// frame's turn for a closer reference than the previous frame, from which the turn is
     /// known.
     fn closest_reference(&self, input: &Mesh) -> Option<&Stored> {
+        let tried: Vec<(&Stored, bool)> = (self.reference_candidates().into_iter().enumerate())
+            .map(|(i, s)| (i, s, tracking::same_connectivity(&s.reference.input, input)))
+            .filter(|&(i, _, same)| same || (i == 0 && self.config.inter.is_some()))
+            .map(|(_, s, same)| (s, same))
+            .collect();
+        if tried.len() < 2 {
+            return tried.first().map(|&(s, _)| s);
+        }
         let step = input.positions.len().div_ceil(REFERENCE_SAMPLES).max(1);
         let sampled = || input.positions.iter().enumerate().step_by(step);
-        let same = |s: &Stored| tracking::same_connectivity(&s.reference.input, input);
-        let distance = |s: &Stored| -> f64 {
-            let r = &s.reference;
-            if same(s) {
+        let distance = |r: &Reference, same: bool| -> f64 {
+            if same {
                 sampled().map(|(v, &p)| sub(p, r.input.positions[v])).map(|d| dot(d, d)).sum()
             } else {
                 sampled().map(|(_, &p)| r.surface.closest_point(p).map_or(0.0, |h| h.dist2)).sum()
             }
         };
-        let tried = self.reference_candidates().into_iter().enumerate().filter(|&(i, s)| same(s) || (i == 0 && self.config.inter.is_some()));
         let mut best: Option<(&Stored, f64)> = None;
-        for (_, s) in tried {
-            let d = distance(s);
+        for (s, same) in tried {
+            let d = distance(&s.reference, same);
             if best.map_or(true, |(_, bd)| d < bd) {
                 best = Some((s, d));
             }

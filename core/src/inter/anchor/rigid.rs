@@ -160,9 +160,8 @@ const SCREEN_SAMPLES: usize = 128;
 /// The turned start ([`TURN_DEGREES`]) whose short ICP ends closest to the input, refined no
 /// further.
 fn screened_turn(points: &[[f64; 3]], input: &Bvh) -> Rigid {
-    let n = points.len() as f64;
-    let c: Vector3<f64> = points.iter().map(|&p| Vector3::from(p)).sum::<Vector3<f64>>() / n;
-    let cov: Matrix3<f64> = points.iter().map(|&p| (Vector3::from(p) - c) * (Vector3::from(p) - c).transpose()).sum::<Matrix3<f64>>() / n;
+    let c = centroid(points.iter().copied());
+    let cov: Matrix3<f64> = points.iter().map(|&p| (Vector3::from(p) - c) * (Vector3::from(p) - c).transpose()).sum::<Matrix3<f64>>() / points.len() as f64;
     let axes = SymmetricEigen::new(cov).eigenvectors;
     let sample = every_kth(points, SCREEN_SAMPLES);
     let starts = (0..3).flat_map(|k| TURN_DEGREES.iter().map(move |&d| (k, d))).map(|(k, d)| {
@@ -231,6 +230,12 @@ fn icp(points: &[[f64; 3]], input: &Bvh, start: Rigid, rounds: usize) -> Rigid {
     motion
 }
 
+/// The mean of `points` (not empty).
+fn centroid(points: impl ExactSizeIterator<Item = [f64; 3]>) -> Vector3<f64> {
+    let n = points.len() as f64;
+    points.map(Vector3::from).sum::<Vector3<f64>>() / n
+}
+
 /// The rigid motion taking the first point of each pair closest to the second (least squares,
 /// Kabsch's method; a reflection is turned into the nearest rotation). None for fewer than
 /// three pairs.
@@ -238,11 +243,7 @@ pub fn best_rigid(pairs: &[Pair]) -> Option<Rigid> {
     if pairs.len() < 3 {
         return None;
     }
-    let n = pairs.len() as f64;
-    let centroid = |pick: fn(&Pair) -> [f64; 3]| -> Vector3<f64> {
-        pairs.iter().map(|p| Vector3::from(pick(p))).sum::<Vector3<f64>>() / n
-    };
-    let (cs, ct) = (centroid(|p| p.0), centroid(|p| p.1));
+    let (cs, ct) = (centroid(pairs.iter().map(|p| p.0)), centroid(pairs.iter().map(|p| p.1)));
     let h: Matrix3<f64> = pairs.iter().map(|(s, t)| (Vector3::from(*s) - cs) * (Vector3::from(*t) - ct).transpose()).sum();
     let svd = h.svd(true, true);
     let (u, v_t) = (svd.u?, svd.v_t?);
