@@ -93,3 +93,23 @@ def test_references_out_of_range_is_a_clear_error():
     for bad in (0, dynmesh.defaults.MAX_REFERENCES + 1):
         with pytest.raises(ValueError, match="references"):
             dynmesh.encode_frames(_warped(2), references=bad)
+
+
+def test_a_part_no_reference_covers_is_refreshed_inside_a_predicted_frame():
+    from dynmesh.conformance import appearing
+    from dynmesh.synth import synth_sequence
+
+    frames = appearing(synth_sequence(frames=40, resolution=14)[:3])
+    options = dict(qp=30, subdiv=2, base_bits=8, bits=11)
+    r = dynmesh.encode_frames(frames, keep_reconstructions=True, **options)
+    assert [f["type"] for f in r.frames] == ["I", "P", "P"]
+    assert r.frames[1]["refreshed_faces"] > 0 and r.frames[2]["refreshed_faces"] == 0
+    # The refreshed frame has the new part's faces besides the moved base's.
+    assert r.frames[1]["base_faces"] > r.frames[0]["base_faces"]
+    decoded = list(dynmesh.decode(r.data))
+    for rec, dec in zip(r.reconstructions, decoded):
+        assert np.array_equal(rec.positions, dec.positions) and np.array_equal(rec.faces, dec.faces)
+    # Without the refresh the frame where the part appears is coded intra, and costs more.
+    off = dynmesh.encode_frames(frames, refresh=False, **options)
+    assert off.frames[1]["type"] == "I" and all(f["refreshed_faces"] == 0 for f in off.frames)
+    assert r.frames[1]["bytes"] < off.frames[1]["bytes"]

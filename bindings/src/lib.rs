@@ -90,6 +90,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDic
     d.set_item("anchor_seconds", s.anchor_seconds)?;
     d.set_item("bytes", s.bytes)?;
     d.set_item("base_bytes", s.base_bytes)?;
+    d.set_item("refreshed_faces", s.refreshed_faces)?;
     d.set_item("displacement_bytes", s.displacement_bytes)?;
     d.set_item("base_vertices", s.base_vertices)?;
     d.set_item("base_faces", s.base_faces)?;

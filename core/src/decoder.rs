@@ -14,7 +14,7 @@
 use crate::base::coder::decode_base;
 use crate::error::DecodeError;
 use crate::geom::mesh::Mesh;
-use crate::inter::motion;
+use crate::inter::{motion, refresh};
 use crate::model::{base_in_world_units, face_allowance, subdivided_base, FrameModel, FrameState};
 use crate::residual::coefcoder;
 use crate::residual::subdivide::Subdivision;
@@ -156,7 +156,7 @@ impl Decoder {
             reference: (unit.frame_type == FrameType::Predicted).then(|| index - p.reference_distance),
             qp: p.qp,
             bytes: unit.payload.len() + bitstream::UNIT_OVERHEAD,
-            base_bytes: p.base.len(),
+            base_bytes: p.base.len() + p.refresh.len(),
             displacement_bytes: p.coefficients.len(),
         })
     }
@@ -239,13 +239,23 @@ impl Decoder {
         let (p, at) = Payload::read(&unit, f)?;
         let h = &self.header;
         let error = |offset: u64, reason: &str| DecodeError::new(Some(f), offset, reason);
-        let (positions, faces) = match (unit.frame_type, reference) {
-            (FrameType::Intra, _) => decode_base(p.base, h.base_bits)
-                .map_err(|e| DecodeError::new(Some(f), at.base, format!("base mesh: {e}")))?,
+        // `origin`: for a refreshed base, the reference base vertex each of its vertices repeats.
+        let ((positions, faces), origin) = match (unit.frame_type, reference) {
+            (FrameType::Intra, _) => {
+                let base = decode_base(p.base, h.base_bits).map_err(|e| DecodeError::new(Some(f), at.base, format!("base mesh: {e}")))?;
+                (base, None)
+            }
             (FrameType::Predicted, Some(r)) => {
                 let mut dec = ec::Decoder::new(p.base);
                 let positions = motion::decode_motion(&mut dec, &r.base, &r.faces, h.base_bits).map_err(|e| error(at.base, &e.0))?;
-                (positions, r.faces.clone())
+                if p.refresh.is_empty() {
+                    ((positions, r.faces.clone()), None)
+                } else {
+                    let (dropped, patch) =
+                        refresh::decode_refresh(p.refresh, r.faces.len(), h.base_bits).map_err(|e| error(at.refresh, &e.0))?;
+                    let (base, origin) = refresh::apply(&positions, &r.faces, &dropped, &patch);
+                    (base, Some(origin))
+                }
             }
             (FrameType::Predicted, None) => return Err(error(at.base, "predicted frame without its reference")),
         };
@@ -259,7 +269,18 @@ impl Decoder {
         let mut coefficients = coefcoder::decode(&mut dec, h.components as usize, &sub).map_err(|e| error(at.coefficients, &e.0))?;
         if p.coefficients_predicted {
             let r = reference.expect("predicted frames have a reference here");
-            coefficients = add_coefficients(&coefficients, &r.coefficients)
+            let carried = origin.map(|origin| {
+                let reference_sub = subdivided_base(h, &r.base, &r.faces, self.lod as usize);
+                let map = refresh::correspondence(&reference_sub, &sub, &origin);
+                (reference_sub.positions.len() * h.components as usize == r.coefficients.len())
+                    .then(|| refresh::carried(&map, &r.coefficients, h.components as usize))
+            });
+            let prior = match &carried {
+                None => Some(&r.coefficients[..]),
+                Some(c) => c.as_deref(),
+            };
+            coefficients = prior
+                .and_then(|prior| add_coefficients(&coefficients, prior))
                 .ok_or_else(|| error(at.coefficients, "predicted displacements do not match their reference"))?;
         }
         Ok((FrameState { base: positions, faces, coefficients }, sub, p.qp))

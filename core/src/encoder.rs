@@ -16,7 +16,7 @@ use crate::geom::limits;
 use crate::geom::mesh::{cross, dot, norm, sub, Mesh};
 use crate::geom::weld::weld;
 use crate::inter::anchor::{self, AnchorParams, AnchorStages, ReferenceBase, Rigid};
-use crate::inter::motion;
+use crate::inter::{motion, refresh};
 use crate::inter::tracking::{self, Bindings};
 use crate::model::{base_in_grid_units, base_in_world_units, face_allowance, subdivided_base, FrameModel, FrameState};
 use crate::residual::coefcoder;
@@ -100,6 +100,9 @@ pub struct EncoderConfig {
     /// Move each part of the reference base rigidly onto the input before the anchor's
     /// matching (`anchor::rigid`; not a stage of the paper).
     pub rigid_align: bool,
+    /// Code the regions an anchored base fits worst intra inside the predicted frame
+    /// (`inter::refresh`; not a stage of the paper).
+    pub refresh: bool,
     /// Predicted frames may refer to any of the last `references` coded frames of their
     /// group (1 = the previous frame only); which one, `SequenceEncoder::closest_reference`
     /// says (an older one only when its input has the frame's connectivity).
@@ -126,6 +129,7 @@ impl Default for EncoderConfig {
             lifting: LiftingChoice::PerValence,
             fold_repair: true,
             rigid_align: true,
+            refresh: true,
             references: 1,
             intra_reference: true,
         }
@@ -232,8 +236,11 @@ pub struct FrameStats {
     /// Frames back to the reference of a predicted frame; 0 for intra.
     pub reference_distance: u32,
     pub bytes: usize,
-    /// Bytes of the base mesh (intra) or of its motion (predicted).
+    /// Bytes of the base mesh (intra) or of its motion and refresh (predicted).
     pub base_bytes: usize,
+    /// Base faces of a predicted frame coded intra by the refresh of its worst-fitting
+    /// regions (0 when nothing was refreshed).
+    pub refreshed_faces: usize,
     pub displacement_bytes: usize,
     pub base_vertices: usize,
     pub base_faces: usize,
@@ -296,9 +303,23 @@ struct Candidate {
     frame_type: FrameType,
     payload: Vec<u8>,
     base_bytes: usize,
+    /// A predicted candidate's motion block, which a refreshed candidate repeats.
+    motion_block: Vec<u8>,
+    /// Faces of the patch a refreshed candidate codes intra.
+    refreshed_faces: usize,
     displacement_bytes: usize,
     state: FrameState,
     reconstruction: Mesh,
+}
+
+/// The reference coefficients a predicted candidate may code its own as differences from.
+struct Prior<'a> {
+    /// The reference frame's base and quantized coefficients.
+    state: &'a FrameState,
+    /// Differences within this many steps are dropped.
+    dead_zone: f64,
+    /// For a refreshed base, the reference base vertex each vertex repeats ([`refresh::apply`]).
+    origin: Option<&'a [u32]>,
 }
 
 /// The payload fields of a candidate that come before its displacements.
@@ -307,6 +328,8 @@ struct Head {
     reference_distance: u32,
     /// The base mesh block (intra) or the motion block (predicted).
     base_block: Vec<u8>,
+    /// The refresh block (predicted frames; empty when nothing is refreshed).
+    refresh_block: Vec<u8>,
 }
 
 /// Encodes the frames of one sequence in order, predicting from earlier frames of the group.
@@ -384,6 +407,7 @@ impl SequenceEncoder {
             reference_distance: chosen.reference_distance,
             bytes: unit.len(),
             base_bytes: c.base_bytes,
+            refreshed_faces: c.refreshed_faces,
             displacement_bytes: c.displacement_bytes,
             base_vertices: c.state.base.len(),
             base_faces: c.state.faces.len(),
@@ -521,7 +545,7 @@ impl SequenceEncoder {
         let base_block = base_mesh_bytes(h, &self.config, &input.positions, &input.faces, target)?;
         let (base, faces) =
             decode_base(&base_block, h.base_bits).map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
-        let head = Head { frame_type: FrameType::Intra, reference_distance: 0, base_block };
+        let head = Head { frame_type: FrameType::Intra, reference_distance: 0, base_block, refresh_block: Vec::new() };
         self.finish_candidate(head, base, faces, target, None)
     }
 
@@ -529,8 +553,8 @@ impl SequenceEncoder {
     /// dropping coefficient differences within `dead_zone` steps.
     fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], dead_zone: f64, target: &Bvh) -> Result<Candidate, InputError> {
         let base_block = motion::encode_motion(&r.state.base, anchor, &r.state.faces);
-        let head = Head { frame_type: FrameType::Predicted, reference_distance: distance, base_block };
-        self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some((&r.state.coefficients, dead_zone)))
+        let head = Head { frame_type: FrameType::Predicted, reference_distance: distance, base_block, refresh_block: Vec::new() };
+        self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some(Prior { state: &r.state, dead_zone, origin: None }))
     }
 
     /// Fits, transforms, quantizes and codes the displacements of the base mesh
@@ -544,7 +568,7 @@ impl SequenceEncoder {
         base: Vec<[u32; 3]>,
         faces: Vec<[u32; 3]>,
         target: &Bvh,
-        reference_coefficients: Option<(&[i32], f64)>,
+        prior: Option<Prior>,
     ) -> Result<Candidate, InputError> {
         let (h, qp) = (&self.header, self.config.qp);
         let model = FrameModel::new(h, qp, subdivided_base(h, &base, &faces, h.schemes.len()));
@@ -563,13 +587,24 @@ impl SequenceEncoder {
         };
         let mut coefficient_block = coded(&q);
         let mut coefficients_predicted = false;
-        if let Some((r, dead_zone)) = reference_coefficients {
-            let residual = differences_from(&steps, r, dead_zone);
+        if let Some(prior) = prior {
+            let comps = h.components as usize;
+            let (r, map) = match prior.origin {
+                None => (prior.state.coefficients.clone(), None),
+                Some(origin) => {
+                    let reference_sub = subdivided_base(h, &prior.state.base, &prior.state.faces, h.schemes.len());
+                    let map = refresh::correspondence(&reference_sub, sub, origin);
+                    (refresh::carried(&map, &prior.state.coefficients, comps), Some(map))
+                }
+            };
+            // A vertex new to the refreshed base has no reference coefficient: it is rounded as intra.
+            let dead_zone = |i: usize| if map.as_ref().is_some_and(|m| m[i / comps] == refresh::NEW) { 0.0 } else { prior.dead_zone };
+            let residual = differences_from(&steps, &r, dead_zone);
             let predicted = coded(&residual);
             if predicted.len() < coefficient_block.len() {
                 coefficients_predicted = true;
                 coefficient_block = predicted;
-                q = residual.iter().zip(r).map(|(d, b)| d + b).collect();
+                q = residual.iter().zip(&r).map(|(d, b)| d + b).collect();
             }
         }
         let reconstruction = model.reconstruct(&q);
@@ -577,6 +612,7 @@ impl SequenceEncoder {
             reference_distance: head.reference_distance,
             qp,
             base: &head.base_block,
+            refresh: &head.refresh_block,
             coefficients_predicted,
             coefficients: &coefficient_block,
         }
@@ -591,7 +627,9 @@ impl SequenceEncoder {
         Ok(Candidate {
             frame_type: head.frame_type,
             payload,
-            base_bytes: head.base_block.len(),
+            base_bytes: head.base_block.len() + head.refresh_block.len(),
+            motion_block: if head.frame_type == FrameType::Predicted { head.base_block } else { Vec::new() },
+            refreshed_faces: 0,
             displacement_bytes: coefficient_block.len(),
             state: FrameState { base, faces, coefficients: q },
             reconstruction,
@@ -626,8 +664,65 @@ impl SequenceEncoder {
         }
         let i = intra(self)?;
         self.last_intra = Some((i.candidate.payload.len(), i.distortion));
+        let p = match self.refreshed(&p, &i, input, target)? {
+            Some(r) if self.rd_cost(&r) < self.rd_cost(&p) => r,
+            _ => p,
+        };
         let (p_bytes, i_bytes) = (p.candidate.payload.len(), i.candidate.payload.len());
         Ok(if self.rd_prefers(p_bytes, p.distortion, i_bytes, i.distortion) { (p, i_bytes) } else { (i, p_bytes) })
+    }
+
+    /// The rate-distortion cost that [`Self::rd_prefers`] compares: PSNR loss in dB plus
+    /// `rd_slope_db` per doubling of the rate (lower is better).
+    fn rd_cost(&self, c: &Chosen) -> f64 {
+        10.0 * c.distortion.max(f64::MIN_POSITIVE).log10() + self.config.rd_slope_db * (c.candidate.payload.len() as f64).log2()
+    }
+
+    /// The predicted frame `p` with the regions its moved base fits worst refreshed from
+    /// the intra candidate `i`'s base (see [`refresh`]), or None when no region is poor or
+    /// the base was tracked (its connectivity is the input's).
+    fn refreshed(&self, p: &Chosen, i: &Chosen, input: &Mesh, target: &Bvh) -> Result<Option<Chosen>, InputError> {
+        if !self.config.refresh || !matches!(p.motion, Some(Motion::Anchor(_))) {
+            return Ok(None);
+        }
+        let h = &self.header;
+        let children = 1usize << (2 * h.schemes.len());
+        let grid = |m: &Mesh| -> Vec<[f64; 3]> { m.positions.iter().map(|&q| h.grid.to_grid(q)).collect() };
+        let limit = refresh::POOR_FIT * i.distortion;
+        let (pc, ic) = (&p.candidate, &i.candidate);
+        let p_rec = grid(&pc.reconstruction);
+        let dropped = refresh::poor_fit(&p_rec, &pc.reconstruction.faces, children, target, limit);
+        let kept: Vec<[u32; 3]> = (pc.reconstruction.faces.chunks(children).zip(&dropped))
+            .filter(|(_, &d)| !d)
+            .flat_map(|(c, _)| c.iter().copied())
+            .collect();
+        let i_rec = grid(&ic.reconstruction);
+        let patched = if kept.is_empty() {
+            vec![true; ic.state.faces.len()]
+        } else {
+            refresh::poor_fit(&i_rec, &ic.reconstruction.faces, children, &Bvh::new(&p_rec, &kept), limit)
+        };
+        if !dropped.contains(&true) && !patched.contains(&true) {
+            return Ok(None);
+        }
+        let patch_faces: Vec<[u32; 3]> = ic.state.faces.iter().zip(&patched).filter(|(_, &x)| x).map(|(f, _)| *f).collect();
+        let patch_block = encode_base(&ic.state.base, &patch_faces, h.base_bits);
+        let patch = decode_base(&patch_block, h.base_bits).map_err(|e| InputError(format!("internal error: refresh patch does not decode: {e}")))?;
+        let ((base, faces), origin) = refresh::apply(&pc.state.base, &pc.state.faces, &dropped, &patch);
+        let reference = &self.references.iter().find(|s| s.frame == self.frame - p.reference_distance).expect("the predicted frame's reference is kept").reference;
+        let dead_zone = p.motion.as_ref().map_or(quantize::PREDICTED_DEAD_ZONE, Motion::dead_zone);
+        let head = Head {
+            frame_type: FrameType::Predicted,
+            reference_distance: p.reference_distance,
+            base_block: pc.motion_block.clone(),
+            refresh_block: refresh::encode_refresh(&dropped, &patch_block),
+        };
+        let prior = Prior { state: &reference.state, dead_zone, origin: Some(&origin) };
+        // A refreshed frame beyond the decoder's face allowance is simply not a candidate.
+        let Ok(mut candidate) = self.finish_candidate(head, base, faces, target, Some(prior)) else { return Ok(None) };
+        candidate.refreshed_faces = patch.1.len();
+        let distortion = self.distortion(&candidate.reconstruction, input, target);
+        Ok(Some(Chosen { candidate, distortion, reference_distance: p.reference_distance, motion: None }))
     }
 
     /// True when a predicted frame of `p_bytes` and distortion `dp` beats an intra frame of
@@ -703,8 +798,8 @@ pub fn max_base_faces(target: usize) -> usize {
 /// reference's quantized coefficients. The difference is what gets quantized, not the
 /// coefficient: a coefficient within the dead zone of its reference's then costs nothing,
 /// where rounding it first could leave a difference of one either way.
-fn differences_from(steps: &[f64], reference: &[i32], dead_zone: f64) -> Vec<i32> {
-    steps.iter().zip(reference).map(|(&x, &r)| quantize::round_beyond_dead_zone(x - r as f64, dead_zone)).collect()
+fn differences_from(steps: &[f64], reference: &[i32], dead_zone: impl Fn(usize) -> f64) -> Vec<i32> {
+    steps.iter().zip(reference).enumerate().map(|(i, (&x, &r))| quantize::round_beyond_dead_zone(x - r as f64, dead_zone(i))).collect()
 }
 
 #[cfg(test)]
@@ -732,7 +827,7 @@ mod tests {
     fn differences_within_the_dead_zone_of_the_reference_are_zero() {
         // 2.6 rounds to 2 on its own (dead zone), which would leave -1 against a reference of 3.
         // Beyond the dead zone (one step) differences are rounded as intra coefficients are.
-        assert_eq!(differences_from(&[2.6, -0.2, 5.0, -4.9, 7.7], &[3, 0, 3, -3, 2], 1.0), vec![0, 0, 2, -2, 6]);
+        assert_eq!(differences_from(&[2.6, -0.2, 5.0, -4.9, 7.7], &[3, 0, 3, -3, 2], |_| 1.0), vec![0, 0, 2, -2, 6]);
     }
 
     #[test]

@@ -125,7 +125,7 @@ def cmd_encode(a) -> dict:
     if not a.json:
         print(_table(frames, [("frame", "frame", "d"), ("type", "type", "s"), ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
                               ("displacement_bytes", "disp B", "d"), ("base_faces", "base faces", "d"),
-                              ("output_faces", "out faces", "d"), ("seconds", "seconds", ".3f")]))
+                              ("refreshed_faces", "refreshed", "d"), ("output_faces", "out faces", "d"), ("seconds", "seconds", ".3f")]))
         of_texture = f" ({result.texture_bytes} of them texture)" if result.texture_bytes else ""
         print(f"wrote {a.output}: {size} bytes{of_texture}, {len(frames)} frames, "
               f"{8 * size / len(frames) * 30 / 1e6:.3f} Mbit/s at 30 fps")
@@ -530,6 +530,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--rigid-align", action=argparse.BooleanOptionalAction, default=d["rigid_align"],
                    help="move each connected part of the reference base rigidly onto the input (ICP, predicted from the "
                         "previous frame's motion) before the anchor's matching (not in the paper; default: %(default)s)")
+    p.add_argument("--refresh", action=argparse.BooleanOptionalAction, default=d["refresh"],
+                   help="code the regions where a predicted frame's moved base fits worst (far from the input, or input it "
+                        "does not cover) intra inside the predicted frame, from the frame's own base mesh; kept when the "
+                        "rate-distortion cost says so (not in the paper; default: %(default)s)")
     p.add_argument("--references", type=int, default=d["references"], metavar="N",
                    help="reference choice: a predicted frame may refer to any of the last N coded frames of its group, "
                         "and is predicted from the one whose input lies closest to its own (an older one only if its input "

@@ -5,7 +5,8 @@ and JavaScript decoders are both tested against (``tests/vectors``).
 run it from the repository root) encodes a handful of
 short streams from the built-in synthetic sequence, one per coding tool (intra and predicted
 frames, predicted through constant topology and through the anchor mesh, each subdivision
-scheme, AQ on and off, normal-only and all-component coefficients, a textured stream), and
+scheme, AQ on and off, normal-only and all-component coefficients, a refreshed region, a
+textured stream), and
 writes them with ``manifest.txt``: one line ``STREAM lod K frame N sha256 HEX`` per frame and
 level of detail, the hash of ``frame_hash`` (and for textured frames a ``uvsha256`` line, the
 hash of their UVs, ``uv_hash``); and ``scales.txt``, the quantization scale of
@@ -52,6 +53,18 @@ def _jittered(m: Mesh, frames: int) -> list[Mesh]:
     return out
 
 
+def appearing(frames: list[Mesh], offset=(1.6, 0.0, 0.0)) -> list[Mesh]:
+    """``frames`` with a second, smaller copy of the first appearing beside them from the second
+    frame on (moving by 0.05 in y per frame): a part no reference base covers, which a predicted
+    frame codes by refreshing that region."""
+    first = frames[0]
+    out = [first]
+    for f, m in enumerate(frames[1:], 1):
+        small = first.positions * 0.35 + np.array(offset) + np.array([0.0, 0.05 * (f - 1), 0.0])
+        out.append(Mesh(np.vstack([m.positions, small]), np.vstack([m.faces, first.faces + len(m.positions)])))
+    return out
+
+
 def _image(size: int = 64) -> np.ndarray:
     """A smooth colour field with a checker on it."""
     y, x = np.mgrid[0:size, 0:size] / size
@@ -94,6 +107,9 @@ def vector_specs() -> list[tuple[str, str, list[Mesh], dict]]:
         ("far_reference", "I + P on constant topology with reference choice: the last frame repeats frame 1 "
          "and refers to it, two frames back (reference distance 2)",
          constant + constant[1:2], dict(small, scheme="midpoint", references=3, intra_reference=True, rd_slope=100.0)),
+        ("anchor_refresh", "I + P through the anchor mesh where a second part appears: frame 1 refreshes "
+         "that region (refresh block, §6.6), frame 2 refers to the refreshed frame",
+         appearing(changing), dict(small, scheme="mixed")),
         ("textured_mixed", "textured (UV atlas, AV1 texture video), I + P, mixed schemes",
          _textured(constant[:2]), dict(small, scheme="mixed", texture_size=64, texture_codec="av1", texture_qp=40)),
     ]

@@ -14,6 +14,7 @@ import { DecodeError } from './error.js';
 import { RangeDecoder } from './stream/ec.js';
 import { decodeBase } from './base/coder.js';
 import { decodeMotion } from './inter/motion.js';
+import { decodeRefresh, applyRefresh, correspondence, carried } from './inter/refresh.js';
 import { decodeCoefficients } from './residual/coefcoder.js';
 import { faceAllowance, subdividedBase, reconstruct } from './model.js';
 
@@ -60,7 +61,7 @@ export class Decoder {
       reference: u.type === PREDICTED ? index - p.referenceDistance : null,
       qp: p.qp,
       bytes: u.length + 9,
-      baseBytes: p.base.length,
+      baseBytes: p.base.length + p.refresh.length,
       displacementBytes: p.coefficients.length,
       textureBytes: u.texture ? u.texture.length : 0,
     };
@@ -132,7 +133,8 @@ export class Decoder {
     const u = this.unit(f);
     const p = readPayload(this.data, u, f);
     const h = this.header;
-    let positions, faces;
+    // For a refreshed base, the reference base vertex each of its vertices repeats.
+    let positions, faces, origin = null;
     if (u.type === INTRA) {
       try {
         ({ positions, faces } = decodeBase(p.base, h.baseBits));
@@ -143,6 +145,15 @@ export class Decoder {
       positions = decodeMotion(new RangeDecoder(p.base), reference.positions, reference.faces, h.baseBits);
       if (positions === null) throw new DecodeError(f, p.baseOffset, 'base mesh motion is truncated or corrupt');
       faces = reference.faces;
+      if (p.refresh.length > 0) {
+        let r;
+        try {
+          r = decodeRefresh(p.refresh, faces.length / 3, h.baseBits);
+        } catch (e) {
+          throw new DecodeError(f, p.refreshOffset, e.message);
+        }
+        ({ positions, faces, origin } = applyRefresh(positions, faces, r.dropped, r.patch));
+      }
     } else {
       throw new DecodeError(f, p.baseOffset, 'predicted frame without its reference');
     }
@@ -155,7 +166,13 @@ export class Decoder {
     let q = decodeCoefficients(new RangeDecoder(p.coefficients), h.components, sub);
     if (q === null) throw new DecodeError(f, p.coefficientsOffset, 'displacement data is truncated or corrupt');
     if (p.coefficientsPredicted) {
-      q = addCoefficients(q, reference.coefficients);
+      let prior = reference.coefficients;
+      if (origin !== null) {
+        const referenceSub = subdividedBase(h, reference.positions, reference.faces, this.lod);
+        const n = referenceSub.positions.length / 3;
+        prior = n * h.components === prior.length ? carried(correspondence(referenceSub, sub, origin), prior, h.components) : null;
+      }
+      q = prior === null ? null : addCoefficients(q, prior);
       if (q === null) throw new DecodeError(f, p.coefficientsOffset, 'predicted displacements do not match their reference');
     }
     return { state: { positions, faces, coefficients: q }, sub, qp: p.qp };
@@ -187,7 +204,9 @@ export function readPayload(data, unit, frame) {
   if (qp < QP_MIN || qp > QP_MAX) throw r.error(`QP ${qp} out of range`);
   const base = r.block('base mesh');
   let coefficientsPredicted = false;
+  let refresh = { bytes: new Uint8Array(0), offset: 0 };
   if (unit.type === PREDICTED) {
+    refresh = r.block('refresh');
     const m = r.u8('coefficient mode');
     if (m > 1) throw r.error(`unknown coefficient mode ${m}`);
     coefficientsPredicted = m === 1;
@@ -195,7 +214,7 @@ export function readPayload(data, unit, frame) {
   const coef = r.block('displacements');
   if (r.remaining() !== 0) throw r.error('unexpected bytes at the end of the frame');
   return {
-    referenceDistance, qp, base: base.bytes, baseOffset: base.offset,
+    referenceDistance, qp, base: base.bytes, baseOffset: base.offset, refresh: refresh.bytes, refreshOffset: refresh.offset,
     coefficientsPredicted, coefficients: coef.bytes, coefficientsOffset: coef.offset,
   };
 }

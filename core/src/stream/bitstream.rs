@@ -13,7 +13,7 @@ use crate::residual::transform::Lifting;
 
 pub const MAGIC: &[u8; 4] = b"DMSH";
 /// Version 2: one subdivision scheme per iteration (version 1 had one for all).
-pub const VERSION: u8 = 4;
+pub const VERSION: u8 = 5;
 /// Size of the fixed part of a frame unit: type, payload length, CRC.
 pub const UNIT_OVERHEAD: usize = 1 + 4 + 4;
 /// Subdivision iterations the format allows (each multiplies the face count by four).

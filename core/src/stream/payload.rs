@@ -2,7 +2,7 @@
 //! decoder through this one pair of functions (`docs/bitstream.md`, "Frame payload").
 //!
 //! Intra: QP, base mesh block, coefficient block. Predicted: reference distance, QP, motion
-//! block, coefficient mode, coefficient block.
+//! block, refresh block, coefficient mode, coefficient block.
 
 use crate::error::DecodeError;
 use crate::residual::quantize;
@@ -16,6 +16,8 @@ pub struct Payload<'a> {
     pub qp: i32,
     /// The base mesh block (intra) or the motion block (predicted).
     pub base: &'a [u8],
+    /// Predicted frames: the refresh block, empty when no region is refreshed.
+    pub refresh: &'a [u8],
     /// Predicted frames: the coefficients are differences from the reference's (mode 1).
     pub coefficients_predicted: bool,
     pub coefficients: &'a [u8],
@@ -25,6 +27,7 @@ pub struct Payload<'a> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Offsets {
     pub base: u64,
+    pub refresh: u64,
     pub coefficients: u64,
 }
 
@@ -40,6 +43,7 @@ impl<'a> Payload<'a> {
         w.i32(self.qp);
         w.block(self.base);
         if predicted {
+            w.block(self.refresh);
             w.u8(self.coefficients_predicted as u8);
         }
         w.block(self.coefficients);
@@ -58,13 +62,14 @@ impl<'a> Payload<'a> {
             return Err(r.error(format!("QP {qp} out of range")));
         }
         let (base, base_offset) = r.block("base mesh")?;
+        let (refresh, refresh_offset) = if predicted { r.block("refresh")? } else { (&[][..], 0) };
         let coefficients_predicted = predicted && coefficient_mode(&mut r)?;
         let (coefficients, coefficients_offset) = r.block("displacements")?;
         if r.remaining() != 0 {
             return Err(r.error("unexpected bytes at the end of the frame"));
         }
-        let payload = Self { reference_distance, qp, base, coefficients_predicted, coefficients };
-        Ok((payload, Offsets { base: base_offset, coefficients: coefficients_offset }))
+        let payload = Self { reference_distance, qp, base, refresh, coefficients_predicted, coefficients };
+        Ok((payload, Offsets { base: base_offset, refresh: refresh_offset, coefficients: coefficients_offset }))
     }
 }
 
@@ -95,29 +100,35 @@ mod tests {
 
     #[test]
     fn payloads_round_trip() {
-        let intra = Payload { reference_distance: 0, qp: 28, base: &[1, 2, 3], coefficients_predicted: false, coefficients: &[4] };
+        let intra = Payload { reference_distance: 0, qp: 28, base: &[1, 2, 3], refresh: &[], coefficients_predicted: false, coefficients: &[4] };
         let bytes = intra.to_bytes(FrameType::Intra);
         assert_eq!(bytes.len(), 4 + 4 + 3 + 4 + 1);
         let (read, offsets) = Payload::read(&unit(FrameType::Intra, &bytes), 0).unwrap();
         assert_eq!(read, intra);
-        assert_eq!(offsets, Offsets { base: 108, coefficients: 115 });
+        assert_eq!(offsets, Offsets { base: 108, refresh: 0, coefficients: 115 });
 
-        let predicted = Payload { reference_distance: 2, qp: -3, base: &[], coefficients_predicted: true, coefficients: &[9, 9] };
+        let predicted = Payload { reference_distance: 2, qp: -3, base: &[], refresh: &[], coefficients_predicted: true, coefficients: &[9, 9] };
         let bytes = predicted.to_bytes(FrameType::Predicted);
         let (read, _) = Payload::read(&unit(FrameType::Predicted, &bytes), 5).unwrap();
         assert_eq!(read, predicted);
+
+        let refreshed = Payload { refresh: &[5, 6], ..predicted.clone() };
+        let bytes = refreshed.to_bytes(FrameType::Predicted);
+        let (read, offsets) = Payload::read(&unit(FrameType::Predicted, &bytes), 5).unwrap();
+        assert_eq!(read, refreshed);
+        assert_eq!(offsets.refresh, 100 + 4 + 4 + 4 + 4);
     }
 
     #[test]
     fn bad_fields_are_refused_with_their_offset() {
-        let p = Payload { reference_distance: 3, qp: 28, base: &[1], coefficients_predicted: false, coefficients: &[] };
+        let p = Payload { reference_distance: 3, qp: 28, base: &[1], refresh: &[], coefficients_predicted: false, coefficients: &[] };
         let bytes = p.to_bytes(FrameType::Predicted);
         let e = Payload::read(&unit(FrameType::Predicted, &bytes), 2).unwrap_err();
         assert!(e.reason.contains("reference distance 3"), "{e}");
         assert_eq!((e.frame, e.offset), (Some(2), 104));
 
         let mut mode = bytes.clone();
-        mode[4 + 4 + 4 + 1] = 7;
+        mode[4 + 4 + 4 + 1 + 4] = 7;
         let e = Payload::read(&unit(FrameType::Predicted, &mode), 3).unwrap_err();
         assert!(e.reason.contains("unknown coefficient mode 7"), "{e}");
 

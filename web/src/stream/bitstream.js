@@ -8,7 +8,7 @@
 import { crc32 } from './crc32.js';
 import { DecodeError } from '../error.js';
 
-export const VERSION = 4;
+export const VERSION = 5;
 export const UNIT_OVERHEAD = 9;
 export const MAX_SUBDIV = 6;
 export const TEXTURE_UNIT = 2;
