@@ -206,10 +206,11 @@ export function readPayload(data, unit, frame) {
   let coefficientsPredicted = false;
   let refresh = { bytes: new Uint8Array(0), offset: 0 };
   if (unit.type === PREDICTED) {
-    refresh = r.block('refresh');
-    const m = r.u8('coefficient mode');
-    if (m > 1) throw r.error(`unknown coefficient mode ${m}`);
-    coefficientsPredicted = m === 1;
+    // bit 0: coefficient differences; bit 1: a refresh block follows.
+    const m = r.u8('predicted frame mode');
+    if (m > 3) throw r.error(`unknown predicted frame mode ${m}`);
+    coefficientsPredicted = (m & 1) !== 0;
+    if (m & 2) refresh = r.block('refresh');
   }
   const coef = r.block('displacements');
   if (r.remaining() !== 0) throw r.error('unexpected bytes at the end of the frame');

@@ -49,7 +49,7 @@ for (const [stream, levels] of Object.entries(uvManifest)) {
   });
 }
 
-test('the vectors hold intra frames, predicted frames of both coefficient modes and both motion predictors', () => {
+test('the vectors hold intra frames, predicted frames of both coefficient modes, a refreshed one and both motion predictors', () => {
   const kinds = new Set();
   for (const stream of Object.keys(manifest)) {
     const dec = new Decoder(new Uint8Array(readFileSync(DIR + stream)));
@@ -57,11 +57,12 @@ test('the vectors hold intra frames, predicted frames of both coefficient modes 
       if (u.type === 0) return kinds.add('I');
       const p = readPayload(dec.data, u, i);
       kinds.add(`P${p.coefficientsPredicted ? 1 : 0}`);
+      if (p.refresh.length > 0) kinds.add(`refreshed P${p.coefficientsPredicted ? 1 : 0}`);
       // The motion block's first bit selects its predictor (docs/bitstream.md section 6.5).
       kinds.add(new RangeDecoder(p.base).bit(bitModels(1), 0) ? 'affine' : 'mean');
     });
   }
-  assert.deepEqual([...kinds].sort(), ['I', 'P0', 'P1', 'affine', 'mean']);
+  assert.deepEqual([...kinds].sort(), ['I', 'P0', 'P1', 'affine', 'mean', 'refreshed P1']);
 });
 
 test('an untextured stream has no UVs', () => {

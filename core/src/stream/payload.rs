@@ -2,7 +2,7 @@
 //! decoder through this one pair of functions (`docs/bitstream.md`, "Frame payload").
 //!
 //! Intra: QP, base mesh block, coefficient block. Predicted: reference distance, QP, motion
-//! block, refresh block, coefficient mode, coefficient block.
+//! block, mode (coefficient differences, refresh), refresh block if any, coefficient block.
 
 use crate::error::DecodeError;
 use crate::residual::quantize;
@@ -33,7 +33,7 @@ pub struct Offsets {
 
 impl<'a> Payload<'a> {
     /// The payload's bytes for a frame of type `frame_type`; the fields intra frames do
-    /// not carry (reference distance, coefficient mode) are not written.
+    /// not carry (reference distance, mode, refresh block) are not written.
     pub fn to_bytes(&self, frame_type: FrameType) -> Vec<u8> {
         let mut w = Writer::default();
         let predicted = frame_type == FrameType::Predicted;
@@ -43,16 +43,19 @@ impl<'a> Payload<'a> {
         w.i32(self.qp);
         w.block(self.base);
         if predicted {
-            w.block(self.refresh);
-            w.u8(self.coefficients_predicted as u8);
+            let refreshed = !self.refresh.is_empty();
+            w.u8(self.coefficients_predicted as u8 | (refreshed as u8) << 1);
+            if refreshed {
+                w.block(self.refresh);
+            }
         }
         w.block(self.coefficients);
         w.bytes
     }
 
     /// Splits the payload of `unit`, frame `frame`, into its fields, checking that the
-    /// reference distance names an earlier frame, the QP is in range, the coefficient mode is
-    /// known and no bytes follow the last block.
+    /// reference distance names an earlier frame, the QP is in range, the mode is known and no
+    /// bytes follow the last block.
     pub fn read(unit: &Unit<'a>, frame: u32) -> Result<(Self, Offsets), DecodeError> {
         let mut r = Reader::new(unit.payload, unit.offset, Some(frame));
         let predicted = unit.frame_type == FrameType::Predicted;
@@ -62,8 +65,8 @@ impl<'a> Payload<'a> {
             return Err(r.error(format!("QP {qp} out of range")));
         }
         let (base, base_offset) = r.block("base mesh")?;
-        let (refresh, refresh_offset) = if predicted { r.block("refresh")? } else { (&[][..], 0) };
-        let coefficients_predicted = predicted && coefficient_mode(&mut r)?;
+        let (coefficients_predicted, refreshed) = if predicted { predicted_mode(&mut r)? } else { (false, false) };
+        let (refresh, refresh_offset) = if refreshed { r.block("refresh")? } else { (&[][..], 0) };
         let (coefficients, coefficients_offset) = r.block("displacements")?;
         if r.remaining() != 0 {
             return Err(r.error("unexpected bytes at the end of the frame"));
@@ -81,12 +84,12 @@ fn reference_distance(r: &mut Reader, frame: u32) -> Result<u32, DecodeError> {
     Ok(d)
 }
 
-/// Whether the coefficients are coded as differences from the reference's.
-fn coefficient_mode(r: &mut Reader) -> Result<bool, DecodeError> {
-    match r.u8("coefficient mode")? {
-        0 => Ok(false),
-        1 => Ok(true),
-        m => Err(r.error(format!("unknown coefficient mode {m}"))),
+/// A predicted frame's mode: whether its coefficients are coded as differences from the
+/// reference's (bit 0) and whether a refresh block follows (bit 1).
+fn predicted_mode(r: &mut Reader) -> Result<(bool, bool), DecodeError> {
+    match r.u8("predicted frame mode")? {
+        m @ 0..=3 => Ok((m & 1 != 0, m & 2 != 0)),
+        m => Err(r.error(format!("unknown predicted frame mode {m}"))),
     }
 }
 
@@ -116,7 +119,7 @@ mod tests {
         let bytes = refreshed.to_bytes(FrameType::Predicted);
         let (read, offsets) = Payload::read(&unit(FrameType::Predicted, &bytes), 5).unwrap();
         assert_eq!(read, refreshed);
-        assert_eq!(offsets.refresh, 100 + 4 + 4 + 4 + 4);
+        assert_eq!(offsets.refresh, 100 + 4 + 4 + 4 + 1 + 4);
     }
 
     #[test]
@@ -128,9 +131,9 @@ mod tests {
         assert_eq!((e.frame, e.offset), (Some(2), 104));
 
         let mut mode = bytes.clone();
-        mode[4 + 4 + 4 + 1 + 4] = 7;
+        mode[4 + 4 + 4 + 1] = 7;
         let e = Payload::read(&unit(FrameType::Predicted, &mode), 3).unwrap_err();
-        assert!(e.reason.contains("unknown coefficient mode 7"), "{e}");
+        assert!(e.reason.contains("unknown predicted frame mode 7"), "{e}");
 
         let qp = Payload { qp: 1000, ..p.clone() }.to_bytes(FrameType::Intra);
         assert!(Payload::read(&unit(FrameType::Intra, &qp), 0).unwrap_err().reason.contains("QP 1000"));
