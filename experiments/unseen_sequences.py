@@ -4,7 +4,8 @@ collision (shared data, synthetic: two objects that collide and merge) frames 0-
 metric grid 256, peak 4.00 (shared/data/README.md); the gears of ``dynmesh.synth.gear_sequence``
 (600 samples per rim, resampled every frame) turning 6, 12 and 20 degrees per frame, metric
 grid 512, peak the largest side of their box. First 6 frames of each, QP 20-36 in steps of 4,
-D1 BD-rate (PCHIP, ``dynmesh.eval.report.bd_rate``) and the frame types at each QP.
+D1 BD-rate (PCHIP, ``dynmesh.eval.report.bd_rate``) of the defaults and of ``--no-refresh``, and
+the defaults' frame types at each QP.
 
     python experiments/unseen_sequences.py [--data ../shared/data]
 """
@@ -54,10 +55,12 @@ def main() -> int:
         print(f"no collision sequence under {a.data}", file=sys.stderr)
         return 1
     for name, frames, peak, grid in cases(a.data):
-        anchor, test = curve(frames, {"inter": "none"}, peak, grid), curve(frames, {}, peak, grid)
-        r = bd_rate([p[:2] for p in anchor], [p[:2] for p in test])
-        value = "n/a" if r["bd_rate"] is None else f"{r['bd_rate']:+.1f} %"
-        print(f"{name}: D1 BD-rate {value} (overlap {float(r['overlap']):.2f}), types {' '.join(p[2] for p in test)}", flush=True)
+        anchor = curve(frames, {"inter": "none"}, peak, grid)
+        test, without = curve(frames, {}, peak, grid), curve(frames, {"refresh": False}, peak, grid)
+        r, w = (bd_rate([p[:2] for p in anchor], [p[:2] for p in c]) for c in (test, without))
+        value, plain = ("n/a" if x["bd_rate"] is None else f"{x['bd_rate']:+.1f} %" for x in (r, w))
+        print(f"{name}: D1 BD-rate {value} (overlap {float(r['overlap']):.2f}; {plain} with --no-refresh), "
+              f"types {' '.join(p[2] for p in test)}", flush=True)
     return 0
 
 

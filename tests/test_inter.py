@@ -106,6 +106,8 @@ def test_a_part_no_reference_covers_is_refreshed_inside_a_predicted_frame():
     assert r.frames[1]["refreshed_faces"] > 0 and r.frames[2]["refreshed_faces"] == 0
     # The refreshed frame has the new part's faces besides the moved base's.
     assert r.frames[1]["base_faces"] > r.frames[0]["base_faces"]
+    refresh_bytes = [f["refresh_bytes"] for f in dynmesh.info(r.data)["frames"]]
+    assert refresh_bytes[0] == 0 and refresh_bytes[1] > 0 and refresh_bytes[2] == 0
     decoded = list(dynmesh.decode(r.data))
     for rec, dec in zip(r.reconstructions, decoded):
         assert np.array_equal(rec.positions, dec.positions) and np.array_equal(rec.faces, dec.faces)

@@ -218,6 +218,7 @@ impl Decoder {
         d.set_item("bytes", i.bytes)?;
         d.set_item("qp", i.qp)?;
         d.set_item("base_bytes", i.base_bytes)?;
+        d.set_item("refresh_bytes", i.refresh_bytes)?;
         d.set_item("displacement_bytes", i.displacement_bytes)?;
         Ok(d)
     }

@@ -30,7 +30,10 @@ pub struct FrameInfo {
     pub reference: Option<u32>,
     pub qp: i32,
     pub bytes: usize,
+    /// The base mesh block (intra), or the motion and refresh blocks (predicted).
     pub base_bytes: usize,
+    /// The refresh block of a predicted frame that refreshes regions of its base (else 0).
+    pub refresh_bytes: usize,
     pub displacement_bytes: usize,
 }
 
@@ -157,6 +160,7 @@ impl Decoder {
             qp: p.qp,
             bytes: unit.payload.len() + bitstream::UNIT_OVERHEAD,
             base_bytes: p.base.len() + p.refresh.len(),
+            refresh_bytes: p.refresh.len(),
             displacement_bytes: p.coefficients.len(),
         })
     }

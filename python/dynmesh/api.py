@@ -278,7 +278,7 @@ def info(data: bytes) -> dict:
     frames = []
     for i in range(dec.frame_count):
         if i in lost:
-            frames.append({"type": FrameType.UNKNOWN, "reference": None, "bytes": 0, "qp": 0, "base_bytes": 0,
+            frames.append({"type": FrameType.UNKNOWN, "reference": None, "bytes": 0, "qp": 0, "base_bytes": 0, "refresh_bytes": 0,
                            "displacement_bytes": 0, "texture_bytes": 0, "damaged": True})
             continue
         try:

@@ -270,7 +270,7 @@ def cmd_info(a) -> dict:
                  "status": f"damaged at byte {lost[i]['offset']}" if i in lost else "ok"}
                 for i, f in enumerate(result["frames"])]
         print(_table(rows, [("frame", "frame", "d"), ("type", "type", "s"), ("ref", "ref", "s"), ("qp", "qp", "d"),
-                            ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
+                            ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"), ("refresh_bytes", "refresh B", "d"),
                             ("displacement_bytes", "disp B", "d"), ("texture_bytes", "texture B", "d"),
                             ("status", "status", "s")]))
     if result["damaged"]:

@@ -62,6 +62,7 @@ export class Decoder {
       qp: p.qp,
       bytes: u.length + 9,
       baseBytes: p.base.length + p.refresh.length,
+      refreshBytes: p.refresh.length,
       displacementBytes: p.coefficients.length,
       textureBytes: u.texture ? u.texture.length : 0,
     };
