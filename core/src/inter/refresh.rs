@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use crate::base::coder::{decode_base, GridMesh};
 use crate::error::Corrupt;
 use crate::geom::bvh::Bvh;
-use crate::geom::mesh::{cross, edge_key, norm, sub, EdgeMap};
+use crate::geom::mesh::{cross, edge_key, norm, sub, EdgeMap, Mesh};
 use crate::residual::subdivide::Subdivision;
 
 /// A base face is refreshed when its subdivision lies farther from the input than this many
@@ -120,10 +120,29 @@ pub fn carried(map: &[u32], reference: &[i32], components: usize) -> Vec<i32> {
     out
 }
 
+/// The regions to refresh, from the subdivided predicted and intra candidates (grid units,
+/// `children` faces per base face, in base face order): per predicted base face, whether it
+/// is dropped, its subdivision lying farther from the `input` surface than `limit` (mean
+/// squared distance); and per intra base face, whether it joins the patch, its subdivision
+/// lying farther than `limit` from the kept faces' (all of them when none is kept).
+pub fn regions(predicted: &Mesh, intra: &Mesh, children: usize, input: &Bvh, limit: f64) -> (Vec<bool>, Vec<bool>) {
+    let dropped = poor_fit(&predicted.positions, &predicted.faces, children, input, limit);
+    let kept: Vec<[u32; 3]> = (predicted.faces.chunks(children).zip(&dropped))
+        .filter(|(_, &d)| !d)
+        .flat_map(|(c, _)| c.iter().copied())
+        .collect();
+    let patched = if kept.is_empty() {
+        vec![true; intra.faces.len() / children]
+    } else {
+        poor_fit(&intra.positions, &intra.faces, children, &Bvh::new(&predicted.positions, &kept), limit)
+    };
+    (dropped, patched)
+}
+
 /// Per group of `children` consecutive faces of `(positions, faces)` (the subdivision of one
 /// base face), whether its area-weighted mean squared distance to `surface`, measured at
 /// face centroids, exceeds `limit`.
-pub fn poor_fit(positions: &[[f64; 3]], faces: &[[u32; 3]], children: usize, surface: &Bvh, limit: f64) -> Vec<bool> {
+fn poor_fit(positions: &[[f64; 3]], faces: &[[u32; 3]], children: usize, surface: &Bvh, limit: f64) -> Vec<bool> {
     faces
         .par_chunks(children)
         .map(|group| {

@@ -1,6 +1,11 @@
 //! The encoder: one input frame to one frame unit, plus the reconstruction that the
-//! decoder will produce from it.
+//! decoder will produce from it. Its options are [`config`].
 
+mod config;
+
+pub use config::{base_ratio_for_qp, EncoderConfig, LiftingChoice, MAX_REFERENCES};
+
+use std::borrow::Cow;
 use std::time::Instant;
 
 use rayon::prelude::*;
@@ -8,214 +13,25 @@ use rayon::prelude::*;
 use crate::base::coder::{decode_base, encode_base};
 use crate::base::decimate::decimate;
 use crate::base::refit::refit_base;
-use crate::decoder;
 use crate::error::InputError;
 use crate::geom::bvh::Bvh;
-use crate::geom::grid::{Grid, BITS_RANGE};
 use crate::geom::limits;
 use crate::geom::mesh::{cross, dot, norm, sub, Mesh};
 use crate::geom::weld::weld;
-use crate::inter::anchor::{self, AnchorParams, AnchorStages, ReferenceBase, Rigid};
+use crate::inter::anchor::{self, AnchorParams, ReferenceBase, Rigid};
 use crate::inter::{motion, refresh};
 use crate::inter::tracking::{self, Bindings};
 use crate::model::{base_in_grid_units, base_in_world_units, face_allowance, subdivided_base, FrameModel, FrameState};
 use crate::residual::coefcoder;
 use crate::residual::displace;
-use crate::residual::quantize::{self, AqParams};
-use crate::residual::subdivide::SchemeChoice;
-use crate::residual::transform;
+use crate::residual::quantize;
+use crate::residual::subdivide::Subdivision;
 use crate::stream::bitstream::{self, FrameType, SequenceHeader};
 use crate::stream::ec;
 use crate::stream::payload::Payload;
 
-/// The lifting transform's update step (see `transform::Lifting`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum LiftingChoice {
-    /// The MPEG test model's level-dependent weights divided by each parent's valence.
-    PerValence,
-    /// 1/8 of each residual to each parent at every level.
-    Constant,
-}
-
-impl LiftingChoice {
-    pub const NAMES: [&'static str; 2] = ["valence", "constant"];
-
-    pub fn from_name(name: &str) -> Option<Self> {
-        let choices = [Self::PerValence, Self::Constant];
-        Self::NAMES.iter().position(|&n| n == name).map(|i| choices[i])
-    }
-
-    pub fn name(self) -> &'static str {
-        Self::NAMES[self as usize]
-    }
-
-    fn weights(self, iterations: usize) -> transform::Lifting {
-        match self {
-            Self::PerValence => transform::Lifting::per_valence(iterations),
-            Self::Constant => transform::Lifting::constant(iterations),
-        }
-    }
-}
-
-/// Encoder options. The defaults are the codec's recommended operating point.
-#[derive(Debug, Clone, PartialEq)]
-pub struct EncoderConfig {
-    /// Quantization parameter of the displacements: +6 doubles the step.
-    pub qp: i32,
-    /// Base mesh faces as a fraction of the input's; `None` follows the QP
-    /// ([`base_ratio_for_qp`]).
-    pub base_ratio: Option<f64>,
-    pub subdiv_iterations: u32,
-    /// The subdivision scheme of each iteration.
-    pub scheme: SchemeChoice,
-    /// Position bit depth of the grid over the sequence box.
-    pub bits: u32,
-    /// Position bit depth of the base mesh (at most `bits`): coarser base positions cost
-    /// fewer bits and the displacements correct them: 9 bits beat 8, 10 and 11 at every QP
-    /// of the sweep that chose [`base_ratio_for_qp`].
-    pub base_bits: u32,
-    /// Code only the normal component of each displacement.
-    pub normal_only: bool,
-    /// Frames per group: every `intra_period`-th frame is intra; 1 makes every frame intra.
-    pub intra_period: u32,
-    /// How predicted frames find their base mesh when the input's connectivity changed: the
-    /// anchor mesh built by these stages, or `None` to predict only frames whose input has
-    /// the reference input's connectivity (the MPEG test model's behaviour; every topology
-    /// change then forces an intra frame).
-    pub inter: Option<AnchorStages>,
-    /// Adaptive displacement quantization, or `None` for one scale per level.
-    pub aq: Option<AqParams>,
-    /// The exchange rate of the intra/inter decision, in dB of PSNR per doubling of the
-    /// rate (the local slope of the codec's RD curve): a frame is predicted when the PSNR it
-    /// loses against intra is at most `rd_slope_db * log2(intra bytes / predicted bytes)`.
-    pub rd_slope_db: f64,
-    /// Refit the base mesh so that its subdivision fits the input, before it is quantized:
-    /// an intra frame's decimated base and a predicted frame's anchor (not a tracked base).
-    pub refit: bool,
-    /// The lifting transform's update weights.
-    pub lifting: LiftingChoice,
-    /// Repair folded anchor triangles before their motion is coded (`anchor::folds`; not a
-    /// stage of the paper).
-    pub fold_repair: bool,
-    /// Move each part of the reference base rigidly onto the input before the anchor's
-    /// matching (`anchor::rigid`; not a stage of the paper).
-    pub rigid_align: bool,
-    /// Code the regions an anchored base fits worst intra inside the predicted frame
-    /// (`inter::refresh`; not a stage of the paper).
-    pub refresh: bool,
-    /// Predicted frames may refer to any of the last `references` coded frames of their
-    /// group (1 = the previous frame only); which one, `SequenceEncoder::closest_reference`
-    /// says (an older one only when its input has the frame's connectivity).
-    pub references: u32,
-    /// Predicted frames may also refer to the group's latest intra frame (same rule).
-    pub intra_reference: bool,
-}
-
-impl Default for EncoderConfig {
-    fn default() -> Self {
-        Self {
-            qp: 28,
-            base_ratio: None,
-            subdiv_iterations: 2,
-            scheme: SchemeChoice::Mixed,
-            bits: 12,
-            base_bits: 9,
-            normal_only: true,
-            intra_period: 32,
-            inter: Some(AnchorStages::NnsMeProj),
-            aq: Some(AqParams::default()),
-            rd_slope_db: 4.0,
-            refit: true,
-            lifting: LiftingChoice::PerValence,
-            fold_repair: true,
-            rigid_align: true,
-            refresh: true,
-            references: 1,
-            intra_reference: true,
-        }
-    }
-}
-
-impl EncoderConfig {
-    /// Refuses options outside what the format can carry.
-    pub fn validate(&self) -> Result<(), InputError> {
-        let err = |m: String| Err(InputError(m));
-        if !quantize::QP_RANGE.contains(&self.qp) {
-            return err(format!("qp {} out of range {:?}", self.qp, quantize::QP_RANGE));
-        }
-        if !(self.base_ratio() > 0.0 && self.base_ratio() <= 1.0) {
-            return err(format!("base ratio {} must be in (0, 1]", self.base_ratio()));
-        }
-        if self.subdiv_iterations > bitstream::MAX_SUBDIV {
-            return err(format!("subdivision iterations {} (at most {})", self.subdiv_iterations, bitstream::MAX_SUBDIV));
-        }
-        self.scheme.schemes(self.subdiv_iterations).map_err(InputError)?;
-        if !BITS_RANGE.contains(&self.bits) {
-            return err(format!("position bits {} out of range {:?}", self.bits, BITS_RANGE));
-        }
-        if !BITS_RANGE.contains(&self.base_bits) || self.base_bits > self.bits {
-            return err(format!("base mesh position bits {} must be in {}..={}", self.base_bits, BITS_RANGE.start(), self.bits));
-        }
-        if self.intra_period == 0 {
-            return err("intra period must be at least 1".into());
-        }
-        if let Some(aq) = &self.aq {
-            if !aq.is_valid() {
-                return err(format!("adaptive quantization needs alpha > 0, h > 0 and |delta| < 1, got {aq:?}"));
-            }
-        }
-        if !(1..=MAX_REFERENCES).contains(&self.references) {
-            return err(format!("references {} out of range 1..={MAX_REFERENCES}", self.references));
-        }
-        if !(self.rd_slope_db.is_finite() && self.rd_slope_db >= 0.0) {
-            return err(format!("rd slope {} must be finite and non-negative", self.rd_slope_db));
-        }
-        Ok(())
-    }
-
-    /// Base mesh faces per input face: as given, else as the QP asks.
-    pub fn base_ratio(&self) -> f64 {
-        self.base_ratio.unwrap_or_else(|| base_ratio_for_qp(self.qp))
-    }
-
-    /// The sequence header for `frame_count` frames inside the box `[min, max]`.
-    pub fn header(&self, frame_count: u32, min: [f64; 3], max: [f64; 3]) -> SequenceHeader {
-        SequenceHeader {
-            frame_count,
-            grid: Grid::over_box(min, max, self.bits),
-            base_bits: self.base_bits,
-            schemes: self.scheme.schemes(self.subdiv_iterations).expect("validated configuration"),
-            lifting: self.lifting.weights(self.subdiv_iterations as usize),
-            components: if self.normal_only { 1 } else { 3 },
-            aq: self.aq,
-        }
-    }
-}
-
 /// Input vertices that [`SequenceEncoder::closest_reference`] measures.
 const REFERENCE_SAMPLES: usize = 1024;
-
-/// The most recent frames a predicted frame may try as its reference: as many as the
-/// decoder keeps, so that decoding in order never decodes a frame twice.
-pub const MAX_REFERENCES: u32 = decoder::CACHED_STATES as u32;
-
-/// The base mesh size that suits displacements quantized with `qp`: coarse displacements
-/// (high QP) go with a small base mesh, fine ones pay for a larger base mesh that follows
-/// the input closer. Chosen by sweeps over base ratio (3 to 20 %), base bits (8 to 11),
-/// subdivision iterations (2, 3) and QP (20 to 36 in steps of 2) on the first 6 frames of
-/// four capture sequences, against the MPEG test model's points (docs/results.md). With
-/// the default two iterations, 12 % below QP 26, 9 % to 29 and 6 % from 30 was best on all
-/// four (2026-12-03, D1 BD-rate against the test model with three iterations and 12 / 6 / 4 %
-/// -> two and these: -10.9 -> -12.5 % basketball_player, -6.6 -> -8.9 % dancer, -7.0 ->
-/// -10.8 % mitch, -16.1 -> -18.1 % thomas); with a quarter of the output faces, encoding
-/// and decoding are faster too.
-pub fn base_ratio_for_qp(qp: i32) -> f64 {
-    match qp {
-        30.. => 0.06,
-        26..=29 => 0.09,
-        _ => 0.12,
-    }
-}
 
 /// What encoding one frame produced.
 #[derive(Debug, Clone)]
@@ -320,6 +136,17 @@ struct Prior<'a> {
     dead_zone: f64,
     /// For a refreshed base, the reference base vertex each vertex repeats ([`refresh::apply`]).
     origin: Option<&'a [u32]>,
+}
+
+impl Prior<'_> {
+    /// The reference's coefficients on the vertices of `sub`, the candidate's subdivision,
+    /// and for a refreshed base the reference vertex each vertex repeats (or `refresh::NEW`).
+    fn coefficients_on(&self, h: &SequenceHeader, sub: &Subdivision) -> (Cow<'_, [i32]>, Option<Vec<u32>>) {
+        let Some(origin) = self.origin else { return (Cow::Borrowed(&self.state.coefficients), None) };
+        let reference_sub = subdivided_base(h, &self.state.base, &self.state.faces, h.schemes.len());
+        let map = refresh::correspondence(&reference_sub, sub, origin);
+        (Cow::Owned(refresh::carried(&map, &self.state.coefficients, h.components as usize)), Some(map))
+    }
 }
 
 /// The payload fields of a candidate that come before its displacements.
@@ -589,14 +416,7 @@ impl SequenceEncoder {
         let mut coefficients_predicted = false;
         if let Some(prior) = prior {
             let comps = h.components as usize;
-            let (r, map) = match prior.origin {
-                None => (prior.state.coefficients.clone(), None),
-                Some(origin) => {
-                    let reference_sub = subdivided_base(h, &prior.state.base, &prior.state.faces, h.schemes.len());
-                    let map = refresh::correspondence(&reference_sub, sub, origin);
-                    (refresh::carried(&map, &prior.state.coefficients, comps), Some(map))
-                }
-            };
+            let (r, map) = prior.coefficients_on(h, sub);
             // A vertex new to the refreshed base has no reference coefficient: it is rounded as intra.
             let dead_zone = |i: usize| if map.as_ref().is_some_and(|m| m[i / comps] == refresh::NEW) { 0.0 } else { prior.dead_zone };
             let residual = differences_from(&steps, &r, dead_zone);
@@ -604,7 +424,7 @@ impl SequenceEncoder {
             if predicted.len() < coefficient_block.len() {
                 coefficients_predicted = true;
                 coefficient_block = predicted;
-                q = residual.iter().zip(&r).map(|(d, b)| d + b).collect();
+                q = residual.iter().zip(r.iter()).map(|(d, b)| d + b).collect();
             }
         }
         let reconstruction = model.reconstruct(&q);
@@ -642,8 +462,9 @@ impl SequenceEncoder {
     /// PSNR margin whatever the rates; here the PSNR the predicted frame loses is weighed
     /// against the rate it saves, at the exchange rate `rd_slope_db`. The predicted frame is
     /// first held against the last intra frame's (rate, distortion); only when it loses
-    /// there is this frame also coded intra and compared, which spares most predicted
-    /// frames a second encoding.
+    /// there is this frame also coded intra, and the predicted frame with its worst-fitting
+    /// regions refreshed from the intra candidate's base ([`Self::refreshed`]) tried in its
+    /// place when it costs less; this spares most predicted frames a second encoding.
     fn choose(&mut self, predicted: Option<Chosen>, input: &Mesh, target: &Bvh) -> Result<(Chosen, usize), InputError> {
         // All-intra streams make no decision: their distortion is not estimated.
         let measured = self.config.intra_period > 1;
@@ -664,18 +485,13 @@ impl SequenceEncoder {
         }
         let i = intra(self)?;
         self.last_intra = Some((i.candidate.payload.len(), i.distortion));
+        let bytes = |c: &Chosen| c.candidate.payload.len();
         let p = match self.refreshed(&p, &i, input, target)? {
-            Some(r) if self.rd_cost(&r) < self.rd_cost(&p) => r,
+            Some(r) if !self.rd_prefers(bytes(&p), p.distortion, bytes(&r), r.distortion) => r,
             _ => p,
         };
-        let (p_bytes, i_bytes) = (p.candidate.payload.len(), i.candidate.payload.len());
+        let (p_bytes, i_bytes) = (bytes(&p), bytes(&i));
         Ok(if self.rd_prefers(p_bytes, p.distortion, i_bytes, i.distortion) { (p, i_bytes) } else { (i, p_bytes) })
-    }
-
-    /// The rate-distortion cost that [`Self::rd_prefers`] compares: PSNR loss in dB plus
-    /// `rd_slope_db` per doubling of the rate (lower is better).
-    fn rd_cost(&self, c: &Chosen) -> f64 {
-        10.0 * c.distortion.max(f64::MIN_POSITIVE).log10() + self.config.rd_slope_db * (c.candidate.payload.len() as f64).log2()
     }
 
     /// The predicted frame `p` with the regions its moved base fits worst refreshed from
@@ -687,21 +503,10 @@ impl SequenceEncoder {
         }
         let h = &self.header;
         let children = 1usize << (2 * h.schemes.len());
-        let grid = |m: &Mesh| -> Vec<[f64; 3]> { m.positions.iter().map(|&q| h.grid.to_grid(q)).collect() };
-        let limit = refresh::POOR_FIT * i.distortion;
+        let in_grid = |m: &Mesh| Mesh::new(m.positions.iter().map(|&q| h.grid.to_grid(q)).collect(), m.faces.clone());
         let (pc, ic) = (&p.candidate, &i.candidate);
-        let p_rec = grid(&pc.reconstruction);
-        let dropped = refresh::poor_fit(&p_rec, &pc.reconstruction.faces, children, target, limit);
-        let kept: Vec<[u32; 3]> = (pc.reconstruction.faces.chunks(children).zip(&dropped))
-            .filter(|(_, &d)| !d)
-            .flat_map(|(c, _)| c.iter().copied())
-            .collect();
-        let i_rec = grid(&ic.reconstruction);
-        let patched = if kept.is_empty() {
-            vec![true; ic.state.faces.len()]
-        } else {
-            refresh::poor_fit(&i_rec, &ic.reconstruction.faces, children, &Bvh::new(&p_rec, &kept), limit)
-        };
+        let limit = refresh::POOR_FIT * i.distortion;
+        let (dropped, patched) = refresh::regions(&in_grid(&pc.reconstruction), &in_grid(&ic.reconstruction), children, target, limit);
         if !dropped.contains(&true) && !patched.contains(&true) {
             return Ok(None);
         }
@@ -709,15 +514,15 @@ impl SequenceEncoder {
         let patch_block = encode_base(&ic.state.base, &patch_faces, h.base_bits);
         let patch = decode_base(&patch_block, h.base_bits).map_err(|e| InputError(format!("internal error: refresh patch does not decode: {e}")))?;
         let ((base, faces), origin) = refresh::apply(&pc.state.base, &pc.state.faces, &dropped, &patch);
-        let reference = &self.references.iter().find(|s| s.frame == self.frame - p.reference_distance).expect("the predicted frame's reference is kept").reference;
-        let dead_zone = p.motion.as_ref().map_or(quantize::PREDICTED_DEAD_ZONE, Motion::dead_zone);
+        let frame = self.frame - p.reference_distance;
+        let reference = &self.references.iter().find(|s| s.frame == frame).expect("the predicted frame's reference is kept").reference;
         let head = Head {
             frame_type: FrameType::Predicted,
             reference_distance: p.reference_distance,
             base_block: pc.motion_block.clone(),
             refresh_block: refresh::encode_refresh(&dropped, &patch_block),
         };
-        let prior = Prior { state: &reference.state, dead_zone, origin: Some(&origin) };
+        let prior = Prior { state: &reference.state, dead_zone: quantize::PREDICTED_DEAD_ZONE, origin: Some(&origin) };
         // A refreshed frame beyond the decoder's face allowance is simply not a candidate.
         let Ok(mut candidate) = self.finish_candidate(head, base, faces, target, Some(prior)) else { return Ok(None) };
         candidate.refreshed_faces = patch.1.len();
