@@ -273,12 +273,7 @@ impl Decoder {
         let mut coefficients = coefcoder::decode(&mut dec, h.components as usize, &sub).map_err(|e| error(at.coefficients, &e.0))?;
         if p.coefficients_predicted {
             let r = reference.expect("predicted frames have a reference here");
-            let carried = origin.map(|origin| {
-                let reference_sub = subdivided_base(h, &r.base, &r.faces, self.lod as usize);
-                let map = refresh::correspondence(&reference_sub, &sub, &origin);
-                (reference_sub.positions.len() * h.components as usize == r.coefficients.len())
-                    .then(|| refresh::carried(&map, &r.coefficients, h.components as usize))
-            });
+            let carried = origin.map(|origin| refresh::carry(h, r, &sub, &origin).map(|(c, _)| c));
             let prior = match &carried {
                 None => Some(&r.coefficients[..]),
                 Some(c) => c.as_deref(),

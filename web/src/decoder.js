@@ -212,6 +212,7 @@ export function readPayload(data, unit, frame) {
     if (m > 3) throw r.error(`unknown predicted frame mode ${m}`);
     coefficientsPredicted = (m & 1) !== 0;
     if (m & 2) refresh = r.block('refresh');
+    if ((m & 2) && refresh.bytes.length === 0) throw r.error('empty refresh block');
   }
   const coef = r.block('displacements');
   if (r.remaining() !== 0) throw r.error('unexpected bytes at the end of the frame');

@@ -143,9 +143,8 @@ impl Prior<'_> {
     /// and for a refreshed base the reference vertex each vertex repeats (or `refresh::NEW`).
     fn coefficients_on(&self, h: &SequenceHeader, sub: &Subdivision) -> (Cow<'_, [i32]>, Option<Vec<u32>>) {
         let Some(origin) = self.origin else { return (Cow::Borrowed(&self.state.coefficients), None) };
-        let reference_sub = subdivided_base(h, &self.state.base, &self.state.faces, h.schemes.len());
-        let map = refresh::correspondence(&reference_sub, sub, origin);
-        (Cow::Owned(refresh::carried(&map, &self.state.coefficients, h.components as usize)), Some(map))
+        let (carried, map) = refresh::carry(h, self.state, sub, origin).expect("the encoder's own reference state fits its subdivision");
+        (Cow::Owned(carried), Some(map))
     }
 }
 

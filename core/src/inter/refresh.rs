@@ -7,13 +7,17 @@
 //! cannot repair either, and the frame would be coded intra for a region of a few percent
 //! of its faces. The refresh codes only that region intra.
 //!
-//! Block format (inside the predicted payload, `docs/bitstream.md` §4b):
+//! Block format (inside the predicted payload when its mode has bit 1, `docs/bitstream.md`
+//! §4b and §6.6):
 //! ```text
-//! per face of the moved base, in order   bit, 1 = dropped; context: the previous face's bit
+//! u32 length, then a range-coded block   per face of the moved base, in order, a bit
+//!                                        (1 = dropped), context: the previous face's bit
 //! patch                                  a base mesh block (§6) of its own, the rest
 //! ```
 //! The refreshed base ([`apply`]) is the moved base's kept faces over the vertices they use,
-//! in their order, followed by the patch's vertices and faces.
+//! in their order, followed by the patch's vertices and faces; [`carry`] carries the
+//! reference's coefficients onto it, edge split by edge split, so that the frame can still
+//! code coefficient differences.
 
 use rayon::prelude::*;
 
@@ -21,7 +25,9 @@ use crate::base::coder::{decode_base, GridMesh};
 use crate::error::Corrupt;
 use crate::geom::bvh::Bvh;
 use crate::geom::mesh::{cross, edge_key, norm, sub, EdgeMap, Mesh};
+use crate::model::{subdivided_base, FrameState};
 use crate::residual::subdivide::Subdivision;
+use crate::stream::bitstream::SequenceHeader;
 
 /// A base face is refreshed when its subdivision lies farther from the input than this many
 /// times the intra candidate's mean squared distance (its RMS distance 8 times the intra
@@ -93,11 +99,26 @@ pub fn apply(positions: &[[u32; 3]], faces: &[[u32; 3]], dropped: &[bool], patch
     ((out_positions, out_faces), origin)
 }
 
+/// The quantized coefficients of `reference` carried onto `sub`, the subdivision of a
+/// refreshed base whose base vertex `v` repeats reference base vertex `origin[v]` (0 for the
+/// vertices that repeat none), and the reference vertex each vertex of `sub` repeats (or
+/// [`NEW`]). The reference is subdivided as many times as `sub` is. None when the reference's
+/// coefficient count does not fit its subdivision.
+pub fn carry(h: &SequenceHeader, reference: &FrameState, sub: &Subdivision, origin: &[u32]) -> Option<(Vec<i32>, Vec<u32>)> {
+    let reference_sub = subdivided_base(h, &reference.base, &reference.faces, sub.lod_count() - 1);
+    let components = h.components as usize;
+    if reference_sub.positions.len() * components != reference.coefficients.len() {
+        return None;
+    }
+    let map = correspondence(&reference_sub, sub, origin);
+    Some((carried(&map, &reference.coefficients, components), map))
+}
+
 /// For each vertex of `refreshed`, the subdivision of a refreshed base whose base vertex `v`
 /// repeats reference base vertex `origin[v]`, the vertex of `reference` (the reference
 /// base's subdivision, as many iterations) it repeats, or [`NEW`]: a kept edge's split
 /// repeats the same edge's split in the reference.
-pub fn correspondence(reference: &Subdivision, refreshed: &Subdivision, origin: &[u32]) -> Vec<u32> {
+fn correspondence(reference: &Subdivision, refreshed: &Subdivision, origin: &[u32]) -> Vec<u32> {
     let first = reference.lod_offsets[1] as u32;
     let splits: EdgeMap<u32> = reference.parents.iter().enumerate().map(|(i, e)| (edge_key(e[0], e[1]), first + i as u32)).collect();
     let mut map = origin.to_vec();
@@ -111,7 +132,7 @@ pub fn correspondence(reference: &Subdivision, refreshed: &Subdivision, origin: 
 
 /// The reference's quantized coefficients (`components` per vertex) carried onto the
 /// vertices of `map` ([`correspondence`]); 0 for new vertices.
-pub fn carried(map: &[u32], reference: &[i32], components: usize) -> Vec<i32> {
+fn carried(map: &[u32], reference: &[i32], components: usize) -> Vec<i32> {
     let mut out = vec![0; map.len() * components];
     for (v, &m) in map.iter().enumerate().filter(|(_, &m)| m != NEW) {
         let (to, from) = (v * components, m as usize * components);

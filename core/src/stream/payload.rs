@@ -67,6 +67,9 @@ impl<'a> Payload<'a> {
         let (base, base_offset) = r.block("base mesh")?;
         let (coefficients_predicted, refreshed) = if predicted { predicted_mode(&mut r)? } else { (false, false) };
         let (refresh, refresh_offset) = if refreshed { r.block("refresh")? } else { (&[][..], 0) };
+        if refreshed && refresh.is_empty() {
+            return Err(r.error("empty refresh block"));
+        }
         let (coefficients, coefficients_offset) = r.block("displacements")?;
         if r.remaining() != 0 {
             return Err(r.error("unexpected bytes at the end of the frame"));
@@ -134,6 +137,12 @@ mod tests {
         mode[4 + 4 + 4 + 1] = 7;
         let e = Payload::read(&unit(FrameType::Predicted, &mode), 3).unwrap_err();
         assert!(e.reason.contains("unknown predicted frame mode 7"), "{e}");
+
+        let mut empty = bytes.clone();
+        empty[4 + 4 + 4 + 1] = 2;
+        empty.splice(4 + 4 + 4 + 1 + 1..4 + 4 + 4 + 1 + 1, [0; 4]);
+        let e = Payload::read(&unit(FrameType::Predicted, &empty), 3).unwrap_err();
+        assert!(e.reason.contains("empty refresh block"), "{e}");
 
         let qp = Payload { qp: 1000, ..p.clone() }.to_bytes(FrameType::Intra);
         assert!(Payload::read(&unit(FrameType::Intra, &qp), 0).unwrap_err().reason.contains("QP 1000"));
