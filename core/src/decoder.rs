@@ -243,8 +243,8 @@ impl Decoder {
         let (p, at) = Payload::read(&unit, f)?;
         let h = &self.header;
         let error = |offset: u64, reason: &str| DecodeError::new(Some(f), offset, reason);
-        // `origin`: for a refreshed base, the reference base vertex each of its vertices repeats.
-        let ((positions, faces), origin) = match (unit.frame_type, reference) {
+        // `kept`: for a refreshed base, the reference base faces it kept.
+        let ((positions, faces), kept) = match (unit.frame_type, reference) {
             (FrameType::Intra, _) => {
                 let base = decode_base(p.base, h.base_bits).map_err(|e| DecodeError::new(Some(f), at.base, format!("base mesh: {e}")))?;
                 (base, None)
@@ -257,8 +257,8 @@ impl Decoder {
                 } else {
                     let (dropped, patch) =
                         refresh::decode_refresh(p.refresh, r.faces.len(), h.base_bits).map_err(|e| error(at.refresh, &e.0))?;
-                    let (base, origin) = refresh::apply(&positions, &r.faces, &dropped, &patch);
-                    (base, Some(origin))
+                    let (base, kept) = refresh::apply(&positions, &r.faces, &dropped, &patch);
+                    (base, Some(kept))
                 }
             }
             (FrameType::Predicted, None) => return Err(error(at.base, "predicted frame without its reference")),
@@ -273,7 +273,7 @@ impl Decoder {
         let mut coefficients = coefcoder::decode(&mut dec, h.components as usize, &sub).map_err(|e| error(at.coefficients, &e.0))?;
         if p.coefficients_predicted {
             let r = reference.expect("predicted frames have a reference here");
-            let carried = origin.map(|origin| refresh::carry(h, r, &sub, &origin).map(|(c, _)| c));
+            let carried = kept.map(|kept| refresh::carry(h, r, &sub, &kept).map(|(c, _)| c));
             let prior = match &carried {
                 None => Some(&r.coefficients[..]),
                 Some(c) => c.as_deref(),

@@ -14,7 +14,7 @@ import { DecodeError } from './error.js';
 import { RangeDecoder } from './stream/ec.js';
 import { decodeBase } from './base/coder.js';
 import { decodeMotion } from './inter/motion.js';
-import { decodeRefresh, applyRefresh, correspondence, carried } from './inter/refresh.js';
+import { decodeRefresh, applyRefresh, carry } from './inter/refresh.js';
 import { decodeCoefficients } from './residual/coefcoder.js';
 import { faceAllowance, subdividedBase, reconstruct } from './model.js';
 
@@ -134,8 +134,8 @@ export class Decoder {
     const u = this.unit(f);
     const p = readPayload(this.data, u, f);
     const h = this.header;
-    // For a refreshed base, the reference base vertex each of its vertices repeats.
-    let positions, faces, origin = null;
+    // For a refreshed base, the reference base faces it kept.
+    let positions, faces, kept = null;
     if (u.type === INTRA) {
       try {
         ({ positions, faces } = decodeBase(p.base, h.baseBits));
@@ -153,7 +153,7 @@ export class Decoder {
         } catch (e) {
           throw new DecodeError(f, p.refreshOffset, e.message);
         }
-        ({ positions, faces, origin } = applyRefresh(positions, faces, r.dropped, r.patch));
+        ({ positions, faces, kept } = applyRefresh(positions, faces, r.dropped, r.patch));
       }
     } else {
       throw new DecodeError(f, p.baseOffset, 'predicted frame without its reference');
@@ -167,12 +167,7 @@ export class Decoder {
     let q = decodeCoefficients(new RangeDecoder(p.coefficients), h.components, sub);
     if (q === null) throw new DecodeError(f, p.coefficientsOffset, 'displacement data is truncated or corrupt');
     if (p.coefficientsPredicted) {
-      let prior = reference.coefficients;
-      if (origin !== null) {
-        const referenceSub = subdividedBase(h, reference.positions, reference.faces, this.lod);
-        const n = referenceSub.positions.length / 3;
-        prior = n * h.components === prior.length ? carried(correspondence(referenceSub, sub, origin), prior, h.components) : null;
-      }
+      const prior = kept === null ? reference.coefficients : carry(reference, sub, kept, h.components);
       q = prior === null ? null : addCoefficients(q, prior);
       if (q === null) throw new DecodeError(f, p.coefficientsOffset, 'predicted displacements do not match their reference');
     }

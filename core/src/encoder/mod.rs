@@ -134,16 +134,16 @@ struct Prior<'a> {
     state: &'a FrameState,
     /// Differences within this many steps are dropped.
     dead_zone: f64,
-    /// For a refreshed base, the reference base vertex each vertex repeats ([`refresh::apply`]).
-    origin: Option<&'a [u32]>,
+    /// For a refreshed base, the reference faces it kept ([`refresh::apply`]).
+    kept: Option<&'a [u32]>,
 }
 
 impl Prior<'_> {
     /// The reference's coefficients on the vertices of `sub`, the candidate's subdivision,
     /// and for a refreshed base the reference vertex each vertex repeats (or `refresh::NEW`).
     fn coefficients_on(&self, h: &SequenceHeader, sub: &Subdivision) -> (Cow<'_, [i32]>, Option<Vec<u32>>) {
-        let Some(origin) = self.origin else { return (Cow::Borrowed(&self.state.coefficients), None) };
-        let (carried, map) = refresh::carry(h, self.state, sub, origin).expect("the encoder's own reference state fits its subdivision");
+        let Some(kept) = self.kept else { return (Cow::Borrowed(&self.state.coefficients), None) };
+        let (carried, map) = refresh::carry(h, self.state, sub, kept).expect("the encoder's own reference state fits its subdivision");
         (Cow::Owned(carried), Some(map))
     }
 }
@@ -380,7 +380,7 @@ impl SequenceEncoder {
     fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], dead_zone: f64, target: &Bvh) -> Result<Candidate, InputError> {
         let base_block = motion::encode_motion(&r.state.base, anchor, &r.state.faces);
         let head = Head { frame_type: FrameType::Predicted, reference_distance: distance, base_block, refresh_block: Vec::new() };
-        self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some(Prior { state: &r.state, dead_zone, origin: None }))
+        self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some(Prior { state: &r.state, dead_zone, kept: None }))
     }
 
     /// Fits, transforms, quantizes and codes the displacements of the base mesh
@@ -512,7 +512,7 @@ impl SequenceEncoder {
         let patch_faces: Vec<[u32; 3]> = ic.state.faces.iter().zip(&patched).filter(|(_, &x)| x).map(|(f, _)| *f).collect();
         let patch_block = encode_base(&ic.state.base, &patch_faces, h.base_bits);
         let patch = decode_base(&patch_block, h.base_bits).map_err(|e| InputError(format!("internal error: refresh patch does not decode: {e}")))?;
-        let ((base, faces), origin) = refresh::apply(&pc.state.base, &pc.state.faces, &dropped, &patch);
+        let ((base, faces), kept) = refresh::apply(&pc.state.base, &pc.state.faces, &dropped, &patch);
         let frame = self.frame - p.reference_distance;
         let reference = &self.references.iter().find(|s| s.frame == frame).expect("the predicted frame's reference is kept").reference;
         let head = Head {
@@ -521,7 +521,7 @@ impl SequenceEncoder {
             base_block: pc.motion_block.clone(),
             refresh_block: refresh::encode_refresh(&dropped, &patch_block),
         };
-        let prior = Prior { state: &reference.state, dead_zone: quantize::PREDICTED_DEAD_ZONE, origin: Some(&origin) };
+        let prior = Prior { state: &reference.state, dead_zone: quantize::PREDICTED_DEAD_ZONE, kept: Some(&kept) };
         // A refreshed frame beyond the decoder's face allowance is simply not a candidate.
         let Ok(mut candidate) = self.finish_candidate(head, base, faces, target, Some(prior)) else { return Ok(None) };
         candidate.refreshed_faces = patch.1.len();

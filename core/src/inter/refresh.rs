@@ -16,7 +16,7 @@
 //! ```
 //! The refreshed base ([`apply`]) is the moved base's kept faces over the vertices they use,
 //! in their order, followed by the patch's vertices and faces; [`carry`] carries the
-//! reference's coefficients onto it, edge split by edge split, so that the frame can still
+//! reference's coefficients onto it, child face by child face, so that the frame can still
 //! code coefficient differences.
 
 use rayon::prelude::*;
@@ -24,9 +24,9 @@ use rayon::prelude::*;
 use crate::base::coder::{decode_base, GridMesh};
 use crate::error::Corrupt;
 use crate::geom::bvh::Bvh;
-use crate::geom::mesh::{cross, edge_key, norm, sub, EdgeMap, Mesh};
-use crate::model::{subdivided_base, FrameState};
-use crate::residual::subdivide::Subdivision;
+use crate::geom::mesh::{cross, norm, sub, Mesh};
+use crate::model::FrameState;
+use crate::residual::subdivide::{subdivided_faces, Subdivision};
 use crate::stream::bitstream::SequenceHeader;
 
 /// A base face is refreshed when its subdivision lies farther from the input than this many
@@ -79,53 +79,50 @@ pub fn decode_refresh(data: &[u8], face_count: usize, bits: u32) -> Result<(Vec<
 }
 
 /// The refreshed base: the faces of `(positions, faces)` not `dropped`, over the vertices
-/// they use (in their order in `positions`), then the patch's vertices and faces; and for
-/// each of its vertices the vertex of `positions` it repeats, or [`NEW`] for the patch's.
+/// they use (in their order in `positions`), then the patch's vertices and faces; and the
+/// index in `faces` of each kept face (the refreshed base's first faces).
 pub fn apply(positions: &[[u32; 3]], faces: &[[u32; 3]], dropped: &[bool], patch: &GridMesh) -> (GridMesh, Vec<u32>) {
-    let kept: Vec<[u32; 3]> = faces.iter().zip(dropped).filter(|(_, &d)| !d).map(|(f, _)| *f).collect();
+    let kept: Vec<u32> = (0..faces.len() as u32).filter(|&f| !dropped[f as usize]).collect();
     let mut index = vec![NEW; positions.len()];
-    kept.iter().flatten().for_each(|&v| index[v as usize] = 0);
-    let mut origin = Vec::new();
+    kept.iter().flat_map(|&f| faces[f as usize]).for_each(|v| index[v as usize] = 0);
+    let mut out_positions = Vec::new();
     for (v, slot) in index.iter_mut().enumerate().filter(|(_, s)| **s == 0) {
-        *slot = origin.len() as u32;
-        origin.push(v as u32);
+        *slot = out_positions.len() as u32;
+        out_positions.push(positions[v]);
     }
-    let mut out_positions: Vec<[u32; 3]> = origin.iter().map(|&v| positions[v as usize]).collect();
-    let mut out_faces: Vec<[u32; 3]> = kept.iter().map(|f| f.map(|v| index[v as usize])).collect();
+    let mut out_faces: Vec<[u32; 3]> = kept.iter().map(|&f| faces[f as usize].map(|v| index[v as usize])).collect();
     let offset = out_positions.len() as u32;
     out_positions.extend_from_slice(&patch.0);
     out_faces.extend(patch.1.iter().map(|f| f.map(|v| v + offset)));
-    origin.resize(out_positions.len(), NEW);
-    ((out_positions, out_faces), origin)
+    ((out_positions, out_faces), kept)
 }
 
 /// The quantized coefficients of `reference` carried onto `sub`, the subdivision of a
-/// refreshed base whose base vertex `v` repeats reference base vertex `origin[v]` (0 for the
-/// vertices that repeat none), and the reference vertex each vertex of `sub` repeats (or
-/// [`NEW`]). The reference is subdivided as many times as `sub` is. None when the reference's
-/// coefficient count does not fit its subdivision.
-pub fn carry(h: &SequenceHeader, reference: &FrameState, sub: &Subdivision, origin: &[u32]) -> Option<(Vec<i32>, Vec<u32>)> {
-    let reference_sub = subdivided_base(h, &reference.base, &reference.faces, sub.lod_count() - 1);
+/// refreshed base whose first faces are the reference base's faces `kept` ([`apply`]), 0 on
+/// the vertices that repeat none of the reference's; and the reference vertex each vertex of
+/// `sub` repeats (or [`NEW`]). The reference is subdivided as many times as `sub` is. None
+/// when the reference's coefficient count does not fit its subdivision.
+pub fn carry(h: &SequenceHeader, reference: &FrameState, sub: &Subdivision, kept: &[u32]) -> Option<(Vec<i32>, Vec<u32>)> {
+    let levels = sub.lod_count() - 1;
+    let (reference_faces, n) = subdivided_faces(&reference.faces, reference.base.len(), levels);
     let components = h.components as usize;
-    if reference_sub.positions.len() * components != reference.coefficients.len() {
+    if n * components != reference.coefficients.len() {
         return None;
     }
-    let map = correspondence(&reference_sub, sub, origin);
+    let map = correspondence(&reference_faces, sub, kept, 1 << (2 * levels));
     Some((carried(&map, &reference.coefficients, components), map))
 }
 
-/// For each vertex of `refreshed`, the subdivision of a refreshed base whose base vertex `v`
-/// repeats reference base vertex `origin[v]`, the vertex of `reference` (the reference
-/// base's subdivision, as many iterations) it repeats, or [`NEW`]: a kept edge's split
-/// repeats the same edge's split in the reference.
-fn correspondence(reference: &Subdivision, refreshed: &Subdivision, origin: &[u32]) -> Vec<u32> {
-    let first = reference.lod_offsets[1] as u32;
-    let splits: EdgeMap<u32> = reference.parents.iter().enumerate().map(|(i, e)| (edge_key(e[0], e[1]), first + i as u32)).collect();
-    let mut map = origin.to_vec();
-    for &[a, b] in &refreshed.parents {
-        let (ma, mb) = (map[a as usize], map[b as usize]);
-        let m = if ma == NEW || mb == NEW { NEW } else { splits.get(&edge_key(ma, mb)).copied().unwrap_or(NEW) };
-        map.push(m);
+/// For each vertex of `refreshed`, the vertex of the reference's subdivision (faces
+/// `reference_faces`, `children` per base face) it repeats, or [`NEW`]: the children of a
+/// kept face repeat, corner for corner, those of the reference face it is.
+fn correspondence(reference_faces: &[[u32; 3]], refreshed: &Subdivision, kept: &[u32], children: usize) -> Vec<u32> {
+    let mut map = vec![NEW; refreshed.positions.len()];
+    for (k, &f) in kept.iter().enumerate() {
+        let (mine, theirs) = (k * children, f as usize * children);
+        for (a, b) in refreshed.faces[mine..mine + children].iter().zip(&reference_faces[theirs..theirs + children]) {
+            (0..3).for_each(|c| map[a[c] as usize] = b[c]);
+        }
     }
     map
 }
@@ -214,24 +211,25 @@ mod tests {
     fn apply_keeps_the_used_vertices_in_order_then_appends_the_patch() {
         let (positions, faces) = strip();
         let patch = (vec![[7, 7, 7], [8, 8, 8], [9, 9, 9]], vec![[0, 1, 2]]);
-        let ((p, f), origin) = apply(&positions, &faces, &[true, true, false, false], &patch);
+        let ((p, f), kept) = apply(&positions, &faces, &[true, true, false, false], &patch);
+        assert_eq!(kept, vec![2, 3]);
         // Faces 2 and 3 use vertices 1, 2, 4, 5; vertices 0 and 3 go.
-        assert_eq!(origin, vec![1, 2, 4, 5, NEW, NEW, NEW]);
         assert_eq!(p[..4], [positions[1], positions[2], positions[4], positions[5]]);
         assert_eq!(p[4..], patch.0[..]);
         assert_eq!(f, vec![[0, 1, 3], [0, 3, 2], [4, 5, 6]]);
     }
 
     #[test]
-    fn a_kept_edge_split_repeats_the_reference_split_and_carries_its_coefficients() {
+    fn a_kept_face_s_children_repeat_the_reference_s_and_carry_their_coefficients() {
         let (positions, faces) = strip();
         let grid = |p: &[[u32; 3]]| -> Vec<[f64; 3]> { p.iter().map(|q| q.map(|c| c as f64)).collect() };
         let schemes = [Scheme::Midpoint, Scheme::Midpoint];
         let reference = subdivide(&grid(&positions), &faces, &schemes);
+        assert_eq!(subdivided_faces(&faces, positions.len(), 2), (reference.faces.clone(), reference.positions.len()));
         let patch = (vec![[50, 50, 50], [60, 50, 50], [50, 60, 50]], vec![[0, 1, 2]]);
-        let ((p, f), origin) = apply(&positions, &faces, &[false, true, false, true], &patch);
+        let ((p, f), kept) = apply(&positions, &faces, &[false, true, false, true], &patch);
         let refreshed = subdivide(&grid(&p), &f, &schemes);
-        let map = correspondence(&reference, &refreshed, &origin);
+        let map = correspondence(&reference.faces, &refreshed, &kept, 16);
         assert_eq!(map.len(), refreshed.positions.len());
         let repeated = map.iter().filter(|&&m| m != NEW).count();
         // Two kept triangles sharing one vertex: 2 x 15 - 1 vertices after two splits.

@@ -220,31 +220,60 @@ pub fn subdivide(positions: &[[f64; 3]], faces: &[[u32; 3]], schemes: &[Scheme])
     s
 }
 
-/// One 1-to-4 split, appending the new level.
-fn split_once(s: &mut Subdivision, scheme: Scheme) {
-    let n0 = s.positions.len();
-    let mut edge_vertex: EdgeMap<u32> = EdgeMap::with_capacity_and_hasher(s.faces.len() * 3 / 2, Default::default());
-    // Opposite corners of each edge, for Loop's odd-vertex rule.
-    let mut opposite: Vec<[u32; 3]> = Vec::new();
-    let mut new_faces = Vec::with_capacity(s.faces.len() * 4);
-    for f in &s.faces {
+/// The faces of `faces` (over `n_vertices` vertices) split `iterations` times, as
+/// [`subdivide`] splits them whatever the scheme, without positions, and the vertex count:
+/// face `i` of the result is face `i` of `subdivide(..).faces`.
+pub fn subdivided_faces(faces: &[[u32; 3]], n_vertices: usize, iterations: usize) -> (Vec<[u32; 3]>, usize) {
+    let (mut faces, mut n) = (faces.to_vec(), n_vertices);
+    for _ in 0..iterations {
+        let split = split_faces(&faces, n);
+        n += split.parents.len();
+        faces = split.faces;
+    }
+    (faces, n)
+}
+
+/// One 1-to-4 split of a connectivity.
+struct Split {
+    faces: Vec<[u32; 3]>,
+    /// Per new vertex (numbered on from the old vertices in order of first use), the edge it
+    /// splits, as `[min, max]`.
+    parents: Vec<[u32; 2]>,
+    /// Per new vertex, the corners opposite its edge (the second `u32::MAX` on a border) and
+    /// how many faces share the edge, for Loop's odd-vertex rule.
+    opposite: Vec<[u32; 3]>,
+}
+
+/// Splits each face of `faces` (over `n0` vertices) into four with [`split_face`].
+fn split_faces(faces: &[[u32; 3]], n0: usize) -> Split {
+    let mut edge_vertex: EdgeMap<u32> = EdgeMap::with_capacity_and_hasher(faces.len() * 3 / 2, Default::default());
+    let mut split = Split { faces: Vec::with_capacity(faces.len() * 4), parents: Vec::new(), opposite: Vec::new() };
+    for f in faces {
         let mids: [u32; 3] = std::array::from_fn(|k| {
             let (a, b, c) = (f[k], f[(k + 1) % 3], f[(k + 2) % 3]);
             let key = edge_key(a, b);
-            let next = (n0 + opposite.len()) as u32;
+            let next = (n0 + split.opposite.len()) as u32;
             let v = *edge_vertex.entry(key).or_insert(next);
             if v == next {
-                s.parents.push([a.min(b), a.max(b)]);
-                opposite.push([c, u32::MAX, 1]);
+                split.parents.push([a.min(b), a.max(b)]);
+                split.opposite.push([c, u32::MAX, 1]);
             } else {
-                let o = &mut opposite[(v as usize) - n0];
+                let o = &mut split.opposite[(v as usize) - n0];
                 o[1] = c;
                 o[2] += 1;
             }
             v
         });
-        new_faces.extend(split_face(f, mids));
+        split.faces.extend(split_face(f, mids));
     }
+    split
+}
+
+/// One 1-to-4 split, appending the new level.
+fn split_once(s: &mut Subdivision, scheme: Scheme) {
+    let n0 = s.positions.len();
+    let Split { faces: new_faces, parents, opposite } = split_faces(&s.faces, n0);
+    s.parents.extend(parents);
     let mut stencils = Stencils::default();
     if scheme == Scheme::Loop {
         even_loop_stencils(n0, &s.faces, &mut stencils);

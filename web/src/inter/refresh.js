@@ -2,13 +2,14 @@
 //
 // Contract: `decodeRefresh` reads what the Rust `encode_refresh` wrote (the dropped flags of
 // the moved base's faces, then a base mesh block) or throws an Error with the Rust reason;
-// `applyRefresh`, `correspondence` and `carried` return what their Rust namesakes return.
+// `applyRefresh` and `carry` return what the Rust `apply` and `carry` return.
 
 import { RangeDecoder, bitModels } from '../stream/ec.js';
 import { decodeBase } from '../base/coder.js';
+import { subdividedFaces } from '../residual/subdivide.js';
 
-/** Marks a vertex that repeats none of the reference's (`refresh::NEW`). */
-export const NEW = 0xffffffff;
+/** Marks a vertex no kept face uses. */
+const NEW = 0xffffffff;
 
 /**
  * @param {Uint8Array} data the refresh block
@@ -42,60 +43,49 @@ export function decodeRefresh(data, faceCount, bits) {
 
 /**
  * The refreshed base: the kept faces over the vertices they use (in their order), then the
- * patch's vertices and faces; `origin[v]` is the moved base's vertex that v repeats, or NEW.
+ * patch's vertices and faces; `kept` lists the moved base's index of each kept face.
  */
 export function applyRefresh(positions, faces, dropped, patch) {
   const n = positions.length / 3;
   const index = new Uint32Array(n).fill(NEW);
-  let keptFaces = 0;
+  const kept = [];
   for (let f = 0; f < dropped.length; f++) {
     if (dropped[f]) continue;
-    keptFaces++;
+    kept.push(f);
     for (let k = 0; k < 3; k++) index[faces[3 * f + k]] = 0;
   }
-  const originList = [];
-  for (let v = 0; v < n; v++) if (index[v] === 0) { index[v] = originList.length; originList.push(v); }
-  const kept = originList.length, np = patch.positions.length / 3;
-  const outPositions = new Uint32Array(3 * (kept + np));
-  originList.forEach((v, i) => outPositions.set(positions.subarray(3 * v, 3 * v + 3), 3 * i));
-  outPositions.set(patch.positions, 3 * kept);
-  const outFaces = new Uint32Array(3 * keptFaces + patch.faces.length);
+  let used = 0;
+  for (let v = 0; v < n; v++) if (index[v] === 0) index[v] = used++;
+  const np = patch.positions.length / 3;
+  const outPositions = new Uint32Array(3 * (used + np));
+  for (let v = 0; v < n; v++) if (index[v] !== NEW) outPositions.set(positions.subarray(3 * v, 3 * v + 3), 3 * index[v]);
+  outPositions.set(patch.positions, 3 * used);
+  const outFaces = new Uint32Array(3 * kept.length + patch.faces.length);
   let o = 0;
-  for (let f = 0; f < dropped.length; f++) {
-    if (dropped[f]) continue;
-    for (let k = 0; k < 3; k++) outFaces[o++] = index[faces[3 * f + k]];
-  }
-  for (let i = 0; i < patch.faces.length; i++) outFaces[o++] = patch.faces[i] + kept;
-  const origin = new Uint32Array(kept + np).fill(NEW);
-  origin.set(originList);
-  return { positions: outPositions, faces: outFaces, origin };
+  for (const f of kept) for (let k = 0; k < 3; k++) outFaces[o++] = index[faces[3 * f + k]];
+  for (let i = 0; i < patch.faces.length; i++) outFaces[o++] = patch.faces[i] + used;
+  return { positions: outPositions, faces: outFaces, kept };
 }
 
-/** For each vertex of the subdivision `refreshed`, the vertex of `reference` it repeats, or NEW. */
-export function correspondence(reference, refreshed, origin) {
-  const first = reference.lodOffsets[1];
-  const splits = new Map();
-  const key = (a, b) => (a < b ? a * 4294967296 + b : b * 4294967296 + a);
-  for (let i = 0; i < reference.parents.length / 2; i++) {
-    splits.set(key(reference.parents[2 * i], reference.parents[2 * i + 1]), first + i);
-  }
-  const total = refreshed.lodOffsets[refreshed.lodOffsets.length - 1];
-  const map = new Uint32Array(total);
-  map.set(origin);
-  for (let i = 0; i < refreshed.parents.length / 2; i++) {
-    const ma = map[refreshed.parents[2 * i]], mb = map[refreshed.parents[2 * i + 1]];
-    const m = ma === NEW || mb === NEW ? undefined : splits.get(key(ma, mb));
-    map[origin.length + i] = m === undefined ? NEW : m;
-  }
-  return map;
-}
-
-/** The reference's coefficients carried onto the vertices of `map`; 0 for new vertices. */
-export function carried(map, reference, components) {
-  const out = new Int32Array(map.length * components);
-  for (let v = 0; v < map.length; v++) {
-    if (map[v] === NEW) continue;
-    for (let k = 0; k < components; k++) out[v * components + k] = reference[map[v] * components + k];
-  }
+/**
+ * The reference state's coefficients carried onto `sub`, the subdivision of a refreshed base
+ * whose first faces are the reference faces `kept` (`refresh::carry`), 0 on new vertices;
+ * null when the reference's coefficient count does not fit its subdivision.
+ */
+export function carry(reference, sub, kept, components) {
+  const levels = sub.lodOffsets.length - 2;
+  const { faces: theirs, vertexCount } = subdividedFaces(reference.faces, reference.positions.length / 3, levels);
+  if (vertexCount * components !== reference.coefficients.length) return null;
+  const children = 4 ** levels;
+  const mine = sub.faces;
+  const total = sub.lodOffsets[sub.lodOffsets.length - 1];
+  const out = new Int32Array(total * components);
+  // The children of a kept face repeat, corner for corner, those of the reference face it is.
+  kept.forEach((f, k) => {
+    for (let i = 0; i < 3 * children; i++) {
+      const v = mine[3 * k * children + i], m = theirs[3 * f * children + i];
+      for (let c = 0; c < components; c++) out[v * components + c] = reference.coefficients[m * components + c];
+    }
+  });
   return out;
 }

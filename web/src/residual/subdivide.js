@@ -52,10 +52,25 @@ export function subdivide(positions, faces, schemes) {
   return s;
 }
 
-function splitOnce(s, scheme) {
-  const n0 = s.positions.length / 3;
-  const nf = s.faces.length / 3;
-  const faces = s.faces;
+/**
+ * The faces of `faces` (over `nVertices` vertices) split `iterations` times, without
+ * positions (`subdivide::subdivided_faces`): face i is face i of `subdivide(..).faces`.
+ * @returns {{faces: Uint32Array, vertexCount: number}}
+ */
+export function subdividedFaces(faces, nVertices, iterations) {
+  let n = nVertices;
+  for (let i = 0; i < iterations; i++) {
+    const split = splitFaces(faces, n);
+    n += split.edges.size;
+    faces = split.faces;
+  }
+  return { faces, vertexCount: n };
+}
+
+/** One 1-to-4 split of `faces` over `n0` vertices: the new faces, the edge table, and per new
+ * vertex its parent edge [min, max], opposite corners and face count. */
+function splitFaces(faces, n0) {
+  const nf = faces.length / 3;
   const edges = new EdgeTable(n0, 3 * nf);
   // Per new vertex: its parent edge [min, max], opposite corners c, d and face count.
   const par = new Uint32Array(2 * 3 * nf);
@@ -87,6 +102,13 @@ function splitOnce(s, scheme) {
     newFaces[o + 6] = m2; newFaces[o + 7] = m1; newFaces[o + 8] = f2;
     newFaces[o + 9] = m0; newFaces[o + 10] = m1; newFaces[o + 11] = m2;
   }
+  return { faces: newFaces, edges, par, opp, count };
+}
+
+function splitOnce(s, scheme) {
+  const n0 = s.positions.length / 3;
+  const faces = s.faces;
+  const { faces: newFaces, edges, par, opp, count } = splitFaces(faces, n0);
   const ne = edges.size;
   const st = new Stencils(n0 + ne, 2 * n0 + 4 * ne);
   if (scheme === 1) evenLoopStencils(n0, faces, st);
