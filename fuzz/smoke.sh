@@ -13,7 +13,7 @@ command -v cargo-fuzz >/dev/null || cargo install --quiet --locked cargo-fuzz
 python -c "import atheris" 2>/dev/null || pip install --quiet atheris
 cargo run --quiet --release -p dynmesh --example fuzz_seeds -- "$work/rust"
 (cd fuzz && cargo +nightly fuzz build -O --sanitizer none)
-for target in stream base motion uv coef; do
+for target in stream base motion refresh uv coef; do
     echo "fuzz smoke: $target (${seconds} s)"
     log="$work/rust-$target.log"
     (cd fuzz && cargo +nightly fuzz run -O --sanitizer none "$target" "$work/rust/$target" -- \

@@ -13,7 +13,7 @@ use crate::stream::bitstream;
 use crate::residual::coefcoder;
 use crate::decoder::Decoder;
 use crate::stream::ec;
-use crate::inter::motion;
+use crate::inter::{motion, refresh};
 use crate::residual::subdivide::{subdivide, Scheme};
 use crate::texture::uvcoder;
 
@@ -101,6 +101,19 @@ pub fn motion(input: &[u8]) {
     }
 }
 
+/// The refresh decoder, on the context mesh the first byte picks as the moved base; a
+/// refresh it reads must give a base whose faces stay within its vertices.
+pub fn refresh(input: &[u8]) {
+    let Some((&b, data)) = input.split_first() else { return };
+    let (positions, faces) = context_mesh(b);
+    if let Ok((dropped, patch)) = refresh::decode_refresh(data, faces.len(), CONTEXT_BITS) {
+        assert_eq!(dropped.len(), faces.len());
+        let ((p, f), kept) = refresh::apply(&positions, &faces, &dropped, &patch);
+        assert_eq!(kept.len(), dropped.iter().filter(|&&d| !d).count());
+        assert!(f.iter().flatten().all(|&v| (v as usize) < p.len()), "refreshed face index out of range");
+    }
+}
+
 /// The UV decoders (with and without the 3D positions: bit 7 of the first byte), on the
 /// context mesh the first byte picks, with 1 to 16 bits (the second byte).
 pub fn uv(input: &[u8]) {
@@ -164,8 +177,8 @@ pub fn context_mesh(b: u8) -> coder::GridMesh {
     (p.iter().map(|q| q.map(|c| ((c + 1.0) * scale).round() as u32)).collect(), f)
 }
 
-/// A valid input for each target, by target name (`stream`, `base`, `motion`, `uv`,
-/// `coef`), made by the encoders from the context meshes.
+/// A valid input for each target, by target name (`stream`, `base`, `motion`, `refresh`,
+/// `uv`, `coef`), made by the encoders from the context meshes.
 pub fn seeds() -> Vec<(&'static str, Vec<u8>)> {
     let mut out = vec![("stream", stream_seed())];
     for b in 0..4u8 {
@@ -173,6 +186,9 @@ pub fn seeds() -> Vec<(&'static str, Vec<u8>)> {
         out.push(("base", [&[CONTEXT_BITS as u8 - 1][..], &coder::encode_base(&p, &f, CONTEXT_BITS)].concat()));
         let moved: Vec<[u32; 3]> = p.iter().map(|q| [q[0].saturating_sub(3), q[1].saturating_sub(2), q[2]]).collect();
         out.push(("motion", [&[b][..], &motion::encode_motion(&p, &moved, &f)].concat()));
+        let dropped: Vec<bool> = (0..f.len()).map(|i| i % 3 == 0).collect();
+        let patch = coder::encode_base(&p, &f[..1], CONTEXT_BITS);
+        out.push(("refresh", [&[b][..], &refresh::encode_refresh(&dropped, &patch)].concat()));
         let uv: Vec<[u32; 2]> = p.iter().map(|q| [q[0], q[1]]).collect();
         out.push(("uv", [&[b, CONTEXT_BITS as u8 - 1][..], &uvcoder::encode_uv(&f, &f, &uv, CONTEXT_BITS)].concat()));
         let c = b | 0x40;
@@ -208,7 +224,8 @@ mod tests {
     /// Every target accepts its seeds, their truncations and single bit flips.
     #[test]
     fn targets_run_on_their_seeds_and_mutations() {
-        let targets = [("stream", stream as fn(&[u8])), ("base", base), ("motion", motion), ("uv", uv), ("coef", coef)];
+        let targets =
+            [("stream", stream as fn(&[u8])), ("base", base), ("motion", motion), ("refresh", refresh), ("uv", uv), ("coef", coef)];
         for (name, seed) in seeds() {
             let target = targets.iter().find(|t| t.0 == name).expect("a target per seed").1;
             target(&seed);
@@ -235,6 +252,7 @@ mod tests {
             match *name {
                 "base" => assert!(!coder::decode_base(&s[1..], CONTEXT_BITS).unwrap().1.is_empty()),
                 "motion" => assert!(motion::decode_motion(&mut ec::Decoder::new(&s[1..]), &p, &f, CONTEXT_BITS).is_ok()),
+                "refresh" => assert!(refresh::decode_refresh(&s[1..], f.len(), CONTEXT_BITS).is_ok()),
                 "uv" => assert!(uvcoder::decode_uv(&s[2..], &f, p.len(), CONTEXT_BITS).is_ok()),
                 _ => {
                     let (comps, sub) = coefficient_context(s[0]);
