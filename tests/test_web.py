@@ -76,8 +76,9 @@ def _with_crc(unit: bytearray) -> bytearray:
     return unit
 
 
-def damaged_streams(data: bytes, count: int, seed: int) -> list[bytes]:
-    """Truncations, plain bit flips (caught by CRCs) and payload damage behind valid CRCs."""
+def damaged_streams(data: bytes, count: int, seed: int, unit_index: int = 0) -> list[bytes]:
+    """Truncations, plain bit flips (caught by CRCs) and payload damage behind valid CRCs
+    (in frame unit ``unit_index``)."""
     rng = np.random.default_rng(seed)
     header_len = 75 + 3 * data[43]  # docs/bitstream.md section 2
     out = [data[:n] for n in (0, 3, 10, header_len - 1, header_len + 4, len(data) // 2, len(data) - 1)]
@@ -85,8 +86,10 @@ def damaged_streams(data: bytes, count: int, seed: int) -> list[bytes]:
         d = bytearray(data)
         d[int(rng.integers(len(d)))] ^= 1 << int(rng.integers(8))
         out.append(bytes(d))
-    # Damage inside the first frame unit's payload, CRC made valid again.
+    # Damage inside that frame unit's payload, CRC made valid again.
     start = header_len
+    for _ in range(unit_index):
+        start += 9 + int.from_bytes(data[start + 1:start + 5], "little")
     length = int.from_bytes(data[start + 1:start + 5], "little")
     for _ in range(count):
         unit = bytearray(data[start:start + 9 + length])
@@ -98,8 +101,10 @@ def damaged_streams(data: bytes, count: int, seed: int) -> list[bytes]:
 
 def test_damaged_streams_give_the_same_errors_in_both_decoders(tmp_path):
     cases = []
-    for k, name in enumerate(["anchor_mixed_aq", "constant_midpoint_all", "intra_loop_aq_all"]):
-        for i, d in enumerate(damaged_streams((VECTORS / f"{name}.dmsh").read_bytes(), 40, k)):
+    # The last: damage in the refreshed predicted frame (unit 1) of anchor_refresh.
+    streams = [("anchor_mixed_aq", 0), ("constant_midpoint_all", 0), ("intra_loop_aq_all", 0), ("anchor_refresh", 1)]
+    for k, (name, unit) in enumerate(streams):
+        for i, d in enumerate(damaged_streams((VECTORS / f"{name}.dmsh").read_bytes(), 40, k, unit)):
             path = tmp_path / f"{name}_{i}.dmsh"
             path.write_bytes(d)
             cases.append((path, d))
