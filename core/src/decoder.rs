@@ -11,6 +11,8 @@
 //! beyond K are not read (they come last in the block) and count as zero, and the frame is
 //! reconstructed on the level-K mesh. At K = all iterations nothing changes.
 
+use std::borrow::Cow;
+
 use crate::base::coder::decode_base;
 use crate::error::DecodeError;
 use crate::geom::mesh::Mesh;
@@ -273,13 +275,12 @@ impl Decoder {
         let mut coefficients = coefcoder::decode(&mut dec, h.components as usize, &sub).map_err(|e| error(at.coefficients, &e.0))?;
         if p.coefficients_predicted {
             let r = reference.expect("predicted frames have a reference here");
-            let carried = kept.map(|kept| refresh::carry(h, r, &sub, &kept).map(|(c, _)| c));
-            let prior = match &carried {
-                None => Some(&r.coefficients[..]),
-                Some(c) => c.as_deref(),
+            let prior = match &kept {
+                None => Some(Cow::Borrowed(&r.coefficients[..])),
+                Some(kept) => refresh::carry(h, r, &sub, kept).map(|(carried, _)| Cow::Owned(carried)),
             };
             coefficients = prior
-                .and_then(|prior| add_coefficients(&coefficients, prior))
+                .and_then(|prior| add_coefficients(&coefficients, &prior))
                 .ok_or_else(|| error(at.coefficients, "predicted displacements do not match their reference"))?;
         }
         Ok((FrameState { base: positions, faces, coefficients }, sub, p.qp))

@@ -16,7 +16,7 @@ use crate::base::refit::refit_base;
 use crate::error::InputError;
 use crate::geom::bvh::Bvh;
 use crate::geom::limits;
-use crate::geom::mesh::{cross, dot, norm, sub, Mesh};
+use crate::geom::mesh::{dot, sub, Mesh};
 use crate::geom::weld::weld;
 use crate::inter::anchor::{self, AnchorParams, ReferenceBase, Rigid};
 use crate::inter::{motion, refresh};
@@ -116,13 +116,10 @@ struct Chosen {
 
 /// One way of coding the current frame.
 struct Candidate {
-    frame_type: FrameType,
+    /// Its fields before the displacements (a refreshed candidate repeats a predicted one's
+    /// motion block).
+    head: Head,
     payload: Vec<u8>,
-    base_bytes: usize,
-    /// A predicted candidate's motion block, which a refreshed candidate repeats.
-    motion_block: Vec<u8>,
-    /// Faces of the patch a refreshed candidate codes intra.
-    refreshed_faces: usize,
     displacement_bytes: usize,
     state: FrameState,
     reconstruction: Mesh,
@@ -156,6 +153,15 @@ struct Head {
     base_block: Vec<u8>,
     /// The refresh block (predicted frames; empty when nothing is refreshed).
     refresh_block: Vec<u8>,
+    /// Faces of the patch the refresh block codes intra.
+    refreshed_faces: usize,
+}
+
+impl Head {
+    /// A head without a refresh.
+    fn new(frame_type: FrameType, reference_distance: u32, base_block: Vec<u8>) -> Self {
+        Self { frame_type, reference_distance, base_block, refresh_block: Vec::new(), refreshed_faces: 0 }
+    }
 }
 
 /// Encodes the frames of one sequence in order, predicting from earlier frames of the group.
@@ -226,14 +232,14 @@ impl SequenceEncoder {
         let same_topology = self.references.last().is_some_and(|s| tracking::same_connectivity(&s.reference.input, &input));
         let (predicted, anchor_seconds) = self.best_predicted(&input, &target)?;
         let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
-        let unit = bitstream::write_unit(chosen.candidate.frame_type, &chosen.candidate.payload);
+        let unit = bitstream::write_unit(chosen.candidate.head.frame_type, &chosen.candidate.payload);
         let c = chosen.candidate;
         let stats = FrameStats {
-            frame_type: Some(c.frame_type),
+            frame_type: Some(c.head.frame_type),
             reference_distance: chosen.reference_distance,
             bytes: unit.len(),
-            base_bytes: c.base_bytes,
-            refreshed_faces: c.refreshed_faces,
+            base_bytes: c.head.base_block.len() + c.head.refresh_block.len(),
+            refreshed_faces: c.head.refreshed_faces,
             displacement_bytes: c.displacement_bytes,
             base_vertices: c.state.base.len(),
             base_faces: c.state.faces.len(),
@@ -245,7 +251,7 @@ impl SequenceEncoder {
             seconds: start.elapsed().as_secs_f64(),
         };
         let base = Mesh::new(base_in_world_units(&self.header, &c.state.base), c.state.faces.clone());
-        let intra = c.frame_type == FrameType::Intra;
+        let intra = c.head.frame_type == FrameType::Intra;
         let reference = Reference { input, state: c.state, motion: chosen.motion, surface: target };
         self.keep_reference(Stored { frame: self.frame, intra, reference });
         self.frame += 1;
@@ -371,7 +377,7 @@ impl SequenceEncoder {
         let base_block = base_mesh_bytes(h, &self.config, &input.positions, &input.faces, target)?;
         let (base, faces) =
             decode_base(&base_block, h.base_bits).map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
-        let head = Head { frame_type: FrameType::Intra, reference_distance: 0, base_block, refresh_block: Vec::new() };
+        let head = Head::new(FrameType::Intra, 0, base_block);
         self.finish_candidate(head, base, faces, target, None)
     }
 
@@ -379,7 +385,7 @@ impl SequenceEncoder {
     /// dropping coefficient differences within `dead_zone` steps.
     fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], dead_zone: f64, target: &Bvh) -> Result<Candidate, InputError> {
         let base_block = motion::encode_motion(&r.state.base, anchor, &r.state.faces);
-        let head = Head { frame_type: FrameType::Predicted, reference_distance: distance, base_block, refresh_block: Vec::new() };
+        let head = Head::new(FrameType::Predicted, distance, base_block);
         self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some(Prior { state: &r.state, dead_zone, kept: None }))
     }
 
@@ -444,11 +450,8 @@ impl SequenceEncoder {
             )));
         }
         Ok(Candidate {
-            frame_type: head.frame_type,
+            head,
             payload,
-            base_bytes: head.base_block.len() + head.refresh_block.len(),
-            motion_block: if head.frame_type == FrameType::Predicted { head.base_block } else { Vec::new() },
-            refreshed_faces: 0,
             displacement_bytes: coefficient_block.len(),
             state: FrameState { base, faces, coefficients: q },
             reconstruction,
@@ -502,7 +505,7 @@ impl SequenceEncoder {
         }
         let h = &self.header;
         let children = 1usize << (2 * h.schemes.len());
-        let in_grid = |m: &Mesh| Mesh::new(m.positions.iter().map(|&q| h.grid.to_grid(q)).collect(), m.faces.clone());
+        let in_grid = |m: &Mesh| Mesh::new(self.in_grid_units(m), m.faces.clone());
         let (pc, ic) = (&p.candidate, &i.candidate);
         let limit = refresh::POOR_FIT * i.distortion;
         let (dropped, patched) = refresh::regions(&in_grid(&pc.reconstruction), &in_grid(&ic.reconstruction), children, target, limit);
@@ -518,13 +521,13 @@ impl SequenceEncoder {
         let head = Head {
             frame_type: FrameType::Predicted,
             reference_distance: p.reference_distance,
-            base_block: pc.motion_block.clone(),
+            base_block: pc.head.base_block.clone(),
             refresh_block: refresh::encode_refresh(&dropped, &patch_block),
+            refreshed_faces: patch.1.len(),
         };
         let prior = Prior { state: &reference.state, dead_zone: quantize::PREDICTED_DEAD_ZONE, kept: Some(&kept) };
         // A refreshed frame beyond the decoder's face allowance is simply not a candidate.
-        let Ok(mut candidate) = self.finish_candidate(head, base, faces, target, Some(prior)) else { return Ok(None) };
-        candidate.refreshed_faces = patch.1.len();
+        let Ok(candidate) = self.finish_candidate(head, base, faces, target, Some(prior)) else { return Ok(None) };
         let distortion = self.distortion(&candidate.reconstruction, input, target);
         Ok(Some(Chosen { candidate, distortion, reference_distance: p.reference_distance, motion: None }))
     }
@@ -537,6 +540,11 @@ impl SequenceEncoder {
         loss_db <= self.config.rd_slope_db * rate_saving
     }
 
+    /// The positions of a reconstruction (in the input's units) in grid units.
+    fn in_grid_units(&self, reconstruction: &Mesh) -> Vec<[f64; 3]> {
+        reconstruction.positions.iter().map(|&p| self.header.grid.to_grid(p)).collect()
+    }
+
     /// An estimate of D1 that needs no sampling, in grid units: the larger of the two
     /// directions' squared distances from one surface to the other, measured at face
     /// centroids and weighted by face area. D1 samples both surfaces uniformly, so a few
@@ -544,7 +552,7 @@ impl SequenceEncoder {
     /// part of the input (hands, a face) no more than its area: weighting the input's
     /// vertices instead made predicted frames look 2-4 dB worse than D1 finds them.
     fn distortion(&self, reconstruction: &Mesh, input: &Mesh, target: &Bvh) -> f64 {
-        let rec: Vec<[f64; 3]> = reconstruction.positions.iter().map(|&p| self.header.grid.to_grid(p)).collect();
+        let rec = self.in_grid_units(reconstruction);
         let forward = area_weighted_squared_distance(&rec, &reconstruction.faces, target);
         let backward = area_weighted_squared_distance(&input.positions, &input.faces, &Bvh::new(&rec, &reconstruction.faces));
         forward.max(backward)
@@ -557,15 +565,7 @@ fn area_weighted_squared_distance(positions: &[[f64; 3]], faces: &[[u32; 3]], su
     // Summed in order after the parallel map: a parallel reduction's grouping depends on
     // the thread scheduling, and the decision it feeds must not, or streams would differ
     // from run to run (and between a sequential and a parallel encode).
-    let terms: Vec<(f64, f64)> = faces
-        .par_iter()
-        .map(|f| {
-            let c = f.map(|v| positions[v as usize]);
-            let centroid = std::array::from_fn(|k| (c[0][k] + c[1][k] + c[2][k]) / 3.0);
-            let a = norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
-            (a * surface.closest_point(centroid).map_or(0.0, |h| h.dist2), a)
-        })
-        .collect();
+    let terms: Vec<(f64, f64)> = faces.par_iter().map(|f| surface.area_weighted_dist2(f.map(|v| positions[v as usize]))).collect();
     let (weighted, area) = terms.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
     if area > 0.0 { weighted / area } else { 0.0 }
 }

@@ -7,7 +7,7 @@
 
 use rayon::prelude::*;
 
-use crate::geom::mesh::{add, cross, dot, scale, sub};
+use crate::geom::mesh::{add, cross, dot, norm, scale, sub};
 
 /// Triangles per leaf: small leaves keep the number of exact triangle tests per query low.
 const LEAF_SIZE: usize = 4;
@@ -165,6 +165,16 @@ impl Bvh {
     /// distance the lowest triangle index wins.
     pub fn closest_point(&self, q: [f64; 3]) -> Option<SurfacePoint> {
         self.closest_point_from(q, None)
+    }
+
+    /// For the triangle with corners `c`: its area (the cross product's length, twice the
+    /// geometric area) times the squared distance from its centroid to this surface, and that
+    /// area. Summed over a surface's triangles, their ratio is the mean squared distance
+    /// weighted by area, which a surface's tessellation does not sway.
+    pub fn area_weighted_dist2(&self, c: [[f64; 3]; 3]) -> (f64, f64) {
+        let centroid = std::array::from_fn(|k| (c[0][k] + c[1][k] + c[2][k]) / 3.0);
+        let area = norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
+        (area * self.closest_point(centroid).map_or(0.0, |h| h.dist2), area)
     }
 
     /// [`Bvh::closest_point`], searched from triangle `hint` (an index into the face list;

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use crate::base::coder::{decode_base, GridMesh};
 use crate::error::Corrupt;
 use crate::geom::bvh::Bvh;
-use crate::geom::mesh::{cross, norm, sub, Mesh};
+use crate::geom::mesh::Mesh;
 use crate::model::FrameState;
 use crate::residual::subdivide::{subdivided_faces, Subdivision};
 use crate::stream::bitstream::SequenceHeader;
@@ -164,14 +164,8 @@ fn poor_fit(positions: &[[f64; 3]], faces: &[[u32; 3]], children: usize, surface
     faces
         .par_chunks(children)
         .map(|group| {
-            let (mut weighted, mut area) = (0.0, 0.0);
-            for f in group {
-                let c = f.map(|v| positions[v as usize]);
-                let centroid = std::array::from_fn(|k| (c[0][k] + c[1][k] + c[2][k]) / 3.0);
-                let a = norm(cross(sub(c[1], c[0]), sub(c[2], c[0])));
-                weighted += a * surface.closest_point(centroid).map_or(0.0, |h| h.dist2);
-                area += a;
-            }
+            let terms = group.iter().map(|f| surface.area_weighted_dist2(f.map(|v| positions[v as usize])));
+            let (weighted, area) = terms.fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
             area > 0.0 && weighted / area > limit
         })
         .collect()
