@@ -106,8 +106,6 @@ impl Motion {
 /// A candidate with what the decision needs and the next frames reuse.
 struct Chosen {
     candidate: Candidate,
-    /// Estimated distortion (see `SequenceEncoder::distortion`).
-    distortion: f64,
     /// Frames back to the reference; 0 for intra.
     reference_distance: u32,
     /// How the reference's base was moved onto this frame (predicted frames).
@@ -123,6 +121,17 @@ struct Candidate {
     displacement_bytes: usize,
     state: FrameState,
     reconstruction: Mesh,
+    /// Estimated distortion (see `SequenceEncoder::distortion`); 0 when it was not measured.
+    distortion: f64,
+}
+
+/// Displacement coefficients as one candidate codes them.
+struct Coded {
+    block: Vec<u8>,
+    /// True for differences from the reference's coefficients (coefficient mode 1).
+    predicted: bool,
+    /// The quantized coefficients the block decodes to.
+    q: Vec<i32>,
 }
 
 /// The reference coefficients a predicted candidate may code its own as differences from.
@@ -293,9 +302,8 @@ impl SequenceEncoder {
         let anchor_seconds = anchor_start.elapsed().as_secs_f64();
         let base = self.predicted_base(r, moved, target);
         let reference_distance = self.frame - stored.frame;
-        let candidate = self.predicted(r, reference_distance, &base, motion.dead_zone(), target)?;
-        let distortion = self.distortion(&candidate.reconstruction, input, target);
-        Ok((Some(Chosen { candidate, distortion, reference_distance, motion: Some(motion) }), anchor_seconds))
+        let candidate = self.predicted(r, reference_distance, &base, motion.dead_zone(), input, target)?;
+        Ok((Some(Chosen { candidate, reference_distance, motion: Some(motion) }), anchor_seconds))
     }
 
     /// Of the references this frame may try, the one whose input lies closest to `input`:
@@ -372,33 +380,39 @@ impl SequenceEncoder {
         let base_grid = self.header.grid.coarser(self.header.base_bits);
         moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect()
     }
-    fn intra(&self, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
+    /// The frame coded intra; its distortion is measured only when `measured`.
+    fn intra(&self, input: &Mesh, target: &Bvh, measured: bool) -> Result<Candidate, InputError> {
         let h = &self.header;
         let base_block = base_mesh_bytes(h, &self.config, &input.positions, &input.faces, target)?;
         let (base, faces) =
             decode_base(&base_block, h.base_bits).map_err(|e| InputError(format!("internal error: base mesh does not decode: {e}")))?;
         let head = Head::new(FrameType::Intra, 0, base_block);
-        self.finish_candidate(head, base, faces, target, None)
+        self.finish_candidate(head, base, faces, measured.then_some(input), target, None)
     }
 
     /// The frame predicted from `r`, `distance` frames back, with its base moved to `anchor`,
     /// dropping coefficient differences within `dead_zone` steps.
-    fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], dead_zone: f64, target: &Bvh) -> Result<Candidate, InputError> {
+    fn predicted(&self, r: &Reference, distance: u32, anchor: &[[u32; 3]], dead_zone: f64, input: &Mesh, target: &Bvh) -> Result<Candidate, InputError> {
         let base_block = motion::encode_motion(&r.state.base, anchor, &r.state.faces);
         let head = Head::new(FrameType::Predicted, distance, base_block);
-        self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), target, Some(Prior { state: &r.state, dead_zone, kept: None }))
+        let prior = Prior { state: &r.state, dead_zone, kept: None };
+        self.finish_candidate(head, anchor.to_vec(), r.state.faces.clone(), Some(input), target, Some(prior))
     }
 
     /// Fits, transforms, quantizes and codes the displacements of the base mesh
-    /// `(base, faces)` towards `target`, and completes the payload that `head` starts. A
-    /// predicted frame passes its reference's coefficients: they correspond vertex for
-    /// vertex, and the coefficients are coded as differences from them, those within its
-    /// dead zone dropped, when that is smaller (coefficient mode 1).
+    /// `(base, faces)` towards `target`, and completes the payload that `head` starts; the
+    /// candidate's distortion is measured against `input` when it is given. A predicted
+    /// frame passes its reference's coefficients: they correspond vertex for vertex, and the
+    /// coefficients may be coded as differences from them, those within its dead zone
+    /// dropped (coefficient mode 1). Differences are kept when they cost less and the
+    /// quality their dead zone loses is worth the bytes ([`Self::rd_prefers`]): on dancer,
+    /// whose coefficients hardly repeat from frame to frame, coding them directly often is.
     fn finish_candidate(
         &self,
         head: Head,
         base: Vec<[u32; 3]>,
         faces: Vec<[u32; 3]>,
+        input: Option<&Mesh>,
         target: &Bvh,
         prior: Option<Prior>,
     ) -> Result<Candidate, InputError> {
@@ -411,50 +425,63 @@ impl SequenceEncoder {
             displace::fit_displacements(&sub.positions, &sub.faces, frames, target, false)
         };
         let steps = model.coefficient_steps(&displace::to_local(&world, frames));
-        let mut q: Vec<i32> = steps.iter().map(|&x| quantize::round_dead_zone(x, quantize::ROUNDING_BIAS)).collect();
-        let coded = |values: &[i32]| {
+        let coded = |q: Vec<i32>, predicted: bool| {
             let mut enc = ec::Encoder::new();
-            coefcoder::encode(&mut enc, values, h.components as usize, sub);
-            enc.finish()
+            coefcoder::encode(&mut enc, &q, h.components as usize, sub);
+            Coded { block: enc.finish(), predicted, q }
         };
-        let mut coefficient_block = coded(&q);
-        let mut coefficients_predicted = false;
+        let payload = |c: &Coded| {
+            Payload {
+                reference_distance: head.reference_distance,
+                qp,
+                base: &head.base_block,
+                refresh: &head.refresh_block,
+                coefficients_predicted: c.predicted,
+                coefficients: &c.block,
+            }
+            .to_bytes(head.frame_type)
+        };
+        let measure = |c: &Coded| {
+            let reconstruction = model.reconstruct(&c.q);
+            let distortion = input.map_or(0.0, |input| self.distortion(&reconstruction, input, target));
+            (reconstruction, distortion)
+        };
+        let mut chosen = coded(steps.iter().map(|&x| quantize::round_dead_zone(x, quantize::ROUNDING_BIAS)).collect(), false);
+        let mut payload_bytes = payload(&chosen);
+        let mut measured = None;
         if let Some(prior) = prior {
             let comps = h.components as usize;
             let (r, map) = prior.coefficients_on(h, sub);
             // A vertex new to the refreshed base has no reference coefficient: it is rounded as intra.
             let dead_zone = |i: usize| if map.as_ref().is_some_and(|m| m[i / comps] == refresh::NEW) { 0.0 } else { prior.dead_zone };
             let residual = differences_from(&steps, &r, dead_zone);
-            let predicted = coded(&residual);
-            if predicted.len() < coefficient_block.len() {
-                coefficients_predicted = true;
-                coefficient_block = predicted;
-                q = residual.iter().zip(r.iter()).map(|(d, b)| d + b).collect();
+            let q = residual.iter().zip(r.iter()).map(|(d, b)| d + b).collect();
+            let differences = Coded { q, ..coded(residual, true) };
+            if differences.block.len() < chosen.block.len() {
+                let (diff_payload, diff) = (payload(&differences), measure(&differences));
+                let direct = measure(&chosen);
+                if self.rd_prefers(diff_payload.len(), diff.1, payload_bytes.len(), direct.1) {
+                    (chosen, payload_bytes, measured) = (differences, diff_payload, Some(diff));
+                } else {
+                    measured = Some(direct);
+                }
             }
         }
-        let reconstruction = model.reconstruct(&q);
-        let payload = Payload {
-            reference_distance: head.reference_distance,
-            qp,
-            base: &head.base_block,
-            refresh: &head.refresh_block,
-            coefficients_predicted,
-            coefficients: &coefficient_block,
-        }
-        .to_bytes(head.frame_type);
-        if reconstruction.faces.len() > face_allowance(payload.len()) {
+        let (reconstruction, distortion) = measured.unwrap_or_else(|| measure(&chosen));
+        if reconstruction.faces.len() > face_allowance(payload_bytes.len()) {
             return Err(InputError(format!(
                 "{} output faces from a {}-byte frame exceed what a decoder accepts; use fewer subdivision iterations",
                 reconstruction.faces.len(),
-                payload.len()
+                payload_bytes.len()
             )));
         }
         Ok(Candidate {
             head,
-            payload,
-            displacement_bytes: coefficient_block.len(),
-            state: FrameState { base, faces, coefficients: q },
+            payload: payload_bytes,
+            displacement_bytes: chosen.block.len(),
+            state: FrameState { base, faces, coefficients: chosen.q },
             reconstruction,
+            distortion,
         })
     }
 
@@ -471,29 +498,28 @@ impl SequenceEncoder {
         // All-intra streams make no decision: their distortion is not estimated.
         let measured = self.config.intra_period > 1;
         let intra = |s: &Self| -> Result<Chosen, InputError> {
-            let candidate = s.intra(input, target)?;
-            let distortion = if measured { s.distortion(&candidate.reconstruction, input, target) } else { 0.0 };
-            Ok(Chosen { candidate, distortion, reference_distance: 0, motion: None })
+            let candidate = s.intra(input, target, measured)?;
+            Ok(Chosen { candidate, reference_distance: 0, motion: None })
         };
         let Some(p) = predicted else {
             let i = intra(self)?;
-            self.last_intra = measured.then_some((i.candidate.payload.len(), i.distortion));
+            self.last_intra = measured.then_some((i.candidate.payload.len(), i.candidate.distortion));
             return Ok((i, 0));
         };
         if let Some((bytes, di)) = self.last_intra {
-            if self.rd_prefers(p.candidate.payload.len(), p.distortion, bytes, di) {
+            if self.rd_prefers(p.candidate.payload.len(), p.candidate.distortion, bytes, di) {
                 return Ok((p, 0));
             }
         }
         let i = intra(self)?;
-        self.last_intra = Some((i.candidate.payload.len(), i.distortion));
+        self.last_intra = Some((i.candidate.payload.len(), i.candidate.distortion));
         let bytes = |c: &Chosen| c.candidate.payload.len();
         let p = match self.refreshed(&p, &i, input, target)? {
-            Some(r) if !self.rd_prefers(bytes(&p), p.distortion, bytes(&r), r.distortion) => r,
+            Some(r) if !self.rd_prefers(bytes(&p), p.candidate.distortion, bytes(&r), r.candidate.distortion) => r,
             _ => p,
         };
         let (p_bytes, i_bytes) = (bytes(&p), bytes(&i));
-        Ok(if self.rd_prefers(p_bytes, p.distortion, i_bytes, i.distortion) { (p, i_bytes) } else { (i, p_bytes) })
+        Ok(if self.rd_prefers(p_bytes, p.candidate.distortion, i_bytes, i.candidate.distortion) { (p, i_bytes) } else { (i, p_bytes) })
     }
 
     /// The predicted frame `p` with the regions its moved base fits worst refreshed from
@@ -507,7 +533,7 @@ impl SequenceEncoder {
         let children = 1usize << (2 * h.schemes.len());
         let in_grid = |m: &Mesh| Mesh::new(self.in_grid_units(m), m.faces.clone());
         let (pc, ic) = (&p.candidate, &i.candidate);
-        let limit = refresh::POOR_FIT * i.distortion;
+        let limit = refresh::POOR_FIT * i.candidate.distortion;
         let (dropped, patched) = refresh::regions(&in_grid(&pc.reconstruction), &in_grid(&ic.reconstruction), children, target, limit);
         if !dropped.contains(&true) && !patched.contains(&true) {
             return Ok(None);
@@ -527,9 +553,8 @@ impl SequenceEncoder {
         };
         let prior = Prior { state: &reference.state, dead_zone: quantize::PREDICTED_DEAD_ZONE, kept: Some(&kept) };
         // A refreshed frame beyond the decoder's face allowance is simply not a candidate.
-        let Ok(candidate) = self.finish_candidate(head, base, faces, target, Some(prior)) else { return Ok(None) };
-        let distortion = self.distortion(&candidate.reconstruction, input, target);
-        Ok(Some(Chosen { candidate, distortion, reference_distance: p.reference_distance, motion: None }))
+        let Ok(candidate) = self.finish_candidate(head, base, faces, Some(input), target, Some(prior)) else { return Ok(None) };
+        Ok(Some(Chosen { candidate, reference_distance: p.reference_distance, motion: None }))
     }
 
     /// True when a predicted frame of `p_bytes` and distortion `dp` beats an intra frame of
