@@ -446,7 +446,7 @@ impl SequenceEncoder {
             let distortion = input.map_or(0.0, |input| self.distortion(&reconstruction, input, target));
             (reconstruction, distortion)
         };
-        let mut chosen = coded(steps.iter().map(|&x| quantize::round_dead_zone(x, quantize::ROUNDING_BIAS)).collect(), false);
+        let mut chosen = coded(quantize::round_levels(&steps, h.components as usize, &sub.lod_offsets), false);
         let mut payload_bytes = payload(&chosen);
         let mut measured = None;
         if let Some(prior) = prior {
