@@ -3,11 +3,13 @@
 //! As in the V-DMC test model, one QP sets the scale `2^(16 - bits + (4 - QP) / 6)` of the
 //! coarsest level (coefficients in grid units), and each finer level's scale is that of the
 //! level above divided by [`LOD_SCALE_DIVISOR`]: coarse coefficients spread over many
-//! vertices through the inverse transform, so they are quantized more finely. Rounding has a
-//! dead zone: magnitudes are rounded down unless their fraction reaches `1 - ROUNDING_BIAS`.
+//! vertices through the inverse transform, so they are quantized more finely. Coarser levels
+//! are rounded to the nearest step ([`COARSE_ROUNDING_BIAS`]); the finest level has a dead
+//! zone: magnitudes are rounded down unless their fraction reaches `1 - ROUNDING_BIAS`.
 //! A predicted frame's differences from its reference's coefficients have a wider dead zone,
 //! [`PREDICTED_DEAD_ZONE`] steps ([`TRACKED_DEAD_ZONE`] for a tracked base), and are rounded
-//! as intra coefficients beyond it.
+//! with [`ROUNDING_BIAS`] beyond it, whatever their level (the coarser levels' rounding
+//! measured no better there).
 
 use crate::geom::mesh::Adjacency;
 
@@ -83,8 +85,8 @@ pub fn round_levels(steps: &[f64], comps: usize, lod_offsets: &[usize]) -> Vec<i
         .collect()
 }
 
-/// Zero when `|x| < dead_zone` steps, else `x` rounded as an intra coefficient is
-/// ([`round_dead_zone`] with [`ROUNDING_BIAS`]).
+/// Zero when `|x| < dead_zone` steps, else `x` rounded as the finest level's intra
+/// coefficients are ([`round_dead_zone`] with [`ROUNDING_BIAS`]).
 #[inline]
 pub fn round_beyond_dead_zone(x: f64, dead_zone: f64) -> i32 {
     if x.abs() < dead_zone { 0 } else { round_dead_zone(x, ROUNDING_BIAS) }
