@@ -214,3 +214,63 @@ def test_basketball_textured_codes_with_a_good_texture(tmp_path):
     assert m["y_psnr"] > 30, m
     decoded = list(dynmesh.decode(result.data))
     assert all(np.array_equal(r.image, d.image) for r, d in zip(result.reconstructions, decoded))
+
+
+def _through_every_inter_tool() -> list:
+    """(name, textured frames, options) that drive a textured stream through each inter tool:
+    the refresh (a part appears), reference choice (a frame repeats an older one), fold
+    repair and the anchor's stages (changing topology), rigid alignment (turning gears)."""
+    from dynmesh.conformance import appearing
+    from dynmesh.synth import gear_sequence
+
+    image = checker_image(seed=2)
+    textured = lambda frames: [with_spherical_uvs(m, image) for m in frames]
+    blobs = synth_sequence(frames=40, resolution=14)
+    warped = [Mesh(blobs[0].positions + [0.06 * f, 0, 0] * np.sin(2 * blobs[0].positions[:, 1:2]), blobs[0].faces)
+              for f in range(3)]
+    small = dict(qp=30, subdiv=2, base_bits=8, bits=11)
+    merging = synth_sequence(frames=10, resolution=24)[:3]
+    return [
+        ("refresh", textured(appearing(blobs[:3])), small),
+        ("refresh, older references", textured(appearing(blobs[:3]) + appearing(blobs[:3])[1:2]),
+         dict(small, references=3, rd_slope=100.0)),
+        ("repeated poses", textured([warped[0], warped[1], warped[2], warped[1]]), dict(references=3, rd_slope=100.0, qp=30)),
+        ("anchor, no fold repair", textured(merging), dict(fold_repair=False)),
+        ("anchor nns+me", textured(merging), dict(inter="nns+me")),
+        ("rigid gears", textured(gear_sequence(3, turn_degrees=12.0, samples=300)), dict(qp=28)),
+    ]
+
+
+@pytest.mark.parametrize("name, frames, options", _through_every_inter_tool(), ids=lambda v: v if isinstance(v, str) else "")
+def test_every_inter_tool_gives_textured_frames_uvs_and_decodes_bit_for_bit(name, frames, options):
+    result = api.encode_frames(frames, keep_reconstructions=True, texture_size=64, **options)
+    assert "P" in [f["type"] for f in result.frames], name
+    decoded = list(api.decode(result.data))
+    for i, (r, d) in enumerate(zip(result.reconstructions, decoded)):
+        assert r.uv_faces.shape == r.faces.shape, (name, i)
+        assert np.array_equal(r.positions, d.positions) and np.array_equal(r.faces, d.faces), (name, i)
+        assert np.array_equal(r.uvs, d.uvs) and np.array_equal(r.uv_faces, d.uv_faces), (name, i)
+        assert np.array_equal(r.image, d.image), (name, i)
+
+
+def test_a_refreshed_frame_starts_a_texture_group_of_its_own():
+    name, frames, options = _through_every_inter_tool()[0]
+    result = api.encode_frames(frames, keep_reconstructions=True, texture_size=64, **options)
+    assert [f["type"] for f in result.frames] == ["I", "P", "P"] and result.frames[1]["refreshed_faces"] > 0
+    # Frame 1's base has faces frame 0's atlas has no UVs for: it carries an atlas of its
+    # own, which frame 2 (moved from frame 1's base) shares.
+    assert [f["texture_bytes"] > 0 for f in api.info(result.data)["frames"]] == [True, True, False]
+    assert np.array_equal(result.reconstructions[2].uv_faces, result.reconstructions[1].uv_faces)
+
+
+def test_texture_size_and_qp_follow_the_source_and_the_geometry_qp(textured_sequence):
+    assert texture.atlas_size_for(1024, 1024) == 1024 and texture.atlas_size_for(2048, 2048) == 2048
+    assert texture.atlas_size_for(2048, 1024) == 1456 and texture.atlas_size_for(3, 5) == 16
+    # The test sequence's texture is 128 x 128: so is its atlas, unless told otherwise.
+    for options, side in (({}, 128), ({"texture_size": 96}, 96)):
+        result = api.encode_frames(textured_sequence, keep_reconstructions=True, **options)
+        assert result.reconstructions[0].image.shape == (side, side, 3)
+    opts = texture.resolve_options({}, 30, textured_sequence[0])
+    assert opts["texture_qp"] == dynmesh.defaults.texture_qp_for(30)
+    assert texture.resolve_options({"texture_qp": 40}, 30, textured_sequence[0])["texture_qp"] == 40
+    assert [dynmesh.defaults.texture_qp_for(q) for q in (20, 28, 36)] == sorted(dynmesh.defaults.texture_qp_for(q) for q in (20, 28, 36))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
@@ -112,8 +113,9 @@ def encode_frames(
     "nns+me+qem" the paper's stages, "nns+me+proj" ours), fold_repair, rigid_align, refresh (ours, all three), rd_slope (dB per rate doubling, for the intra/inter decision), aq
     (adaptive quantization) with aq_alpha, aq_delta, aq_h.
     Textures (``texture``: "auto" codes them when every frame has UVs and a texture image,
-    in ``Mesh.image`` or at ``Mesh.texture``): texture_size (atlas side in texels),
-    texture_qp (video QP), texture_codec ("hevc" or "av1"); see ``dynmesh.texture``.
+    in ``Mesh.image`` or at ``Mesh.texture``): texture_size (atlas side in texels; None:
+    about the texel count of the first frame's texture), texture_qp (video QP in HEVC's
+    scale; None: follows ``qp``), texture_codec ("hevc" or "av1"); see ``dynmesh.texture``.
     ``jobs`` > 1 encodes the groups of ``intra_period`` frames in that many local processes,
     ``ray`` (a Ray cluster address or "auto") as tasks of a Ray cluster; the stream is the
     same byte for byte (see ``dynmesh.parallel``), and ``on_frame`` is then called for a
@@ -126,6 +128,9 @@ def encode_frames(
     opts, texture_options = _split_options(options)
     count, lo, hi, meshes, textured = _sequence_of(frames, texture, sequence)
     enc = _encoder(count, lo, hi, opts)
+    if textured:
+        first, meshes = _peek(meshes)
+        texture_options = _texture.resolve_options(texture_options, opts["qp"], first)
     if jobs != 1 or ray is not None:
         from . import parallel  # a cycle otherwise: parallel's workers encode through this module
 
@@ -140,6 +145,19 @@ def encode_frames(
         raise ValueError(f"{len(result.frames)} frames where {count} were announced")
     result.data = enc.header_bytes() + result.data
     return result
+
+
+def _peek(meshes: Iterable[Mesh]) -> tuple[Mesh, Iterable[Mesh]]:
+    """The first of ``meshes`` and all of them again (a generator is consumed once)."""
+    if isinstance(meshes, list):
+        if not meshes:
+            raise ValueError("no frames")
+        return meshes[0], meshes
+    it = iter(meshes)
+    first = next(it, None)
+    if first is None:
+        raise ValueError("no frames")
+    return first, itertools.chain([first], it)
 
 
 def _split_options(options: dict) -> tuple[dict, dict]:

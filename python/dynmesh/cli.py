@@ -11,7 +11,7 @@ from pathlib import Path
 
 # The API, numpy and the file readers are imported by the commands that use them:
 # `dynmesh decode` needs none of them, and importing them would cost it more than decoding.
-from .defaults import ENCODER, INTER_MODES, LIFTINGS, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS, base_ratio_rule
+from .defaults import ENCODER, INTER_MODES, LIFTINGS, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS, base_ratio_rule, texture_qp_rule
 from .io import StagedDirectory, mesh_inputs, refuse_inputs, resolve_sequence
 
 
@@ -559,8 +559,11 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--texture", action=argparse.BooleanOptionalAction, default=None,
                    help="code the frames' textures (default: when every frame has UVs and a texture image)")
     p.add_argument("--texture-size", type=int, default=t["texture_size"],
-                   help=f"side of the texture atlas in texels (default {t['texture_size']})")
-    p.add_argument("--texture-qp", type=int, default=t["texture_qp"], help=f"texture video QP, 0-51 (default {t['texture_qp']})")
+                   help="side of the texture atlas in texels (default: about the texel count of the first frame's "
+                        "texture, to a multiple of 16: a 1024 x 1024 source gives 1024)")
+    p.add_argument("--texture-qp", type=int, default=t["texture_qp"],
+                   help="texture video QP, 0-51, on HEVC's scale whatever the codec (default: follows --qp, "
+                        f"{texture_qp_rule()})")
     p.add_argument("--texture-codec", choices=list(TEXTURE_CODECS), default=t["texture_codec"],
                    help=f"texture video codec: HEVC (libx265) or AV1 (libsvtav1), 10-bit 4:2:0 (default {t['texture_codec']})")
     _parallel_args(p, "groups of --intra-period frames encoded", jobs="auto")

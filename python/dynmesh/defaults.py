@@ -52,7 +52,29 @@ class FrameType(StrEnum):
 MAX_REFERENCES: int = _core.MAX_REFERENCES
 
 #: Defaults of the texture options (``encode_frames`` takes them beside the geometry ones).
-TEXTURE: dict = {"texture_size": 2048, "texture_qp": 32, "texture_codec": "hevc"}
+#: None leaves the option to the encoder: the atlas side from the source textures' texel
+#: count, the texture QP from the geometry QP (``texture.resolve_options``).
+TEXTURE: dict = {"texture_size": None, "texture_qp": None, "texture_codec": "hevc"}
 
 #: Texture video codec names as the stream signals them (the index is the code).
 TEXTURE_CODECS = ("hevc", "av1")
+
+
+#: ``texture_qp_for``: texture QP = slope x geometry QP + offset, the pairs on the hull of
+#: (geometry QP, texture QP) sweeps of the shared textured captures (``docs/results.md``).
+TEXTURE_QP_SLOPE: float = 1.0
+TEXTURE_QP_OFFSET: float = 4.0
+
+
+def texture_qp_for(qp: int) -> int:
+    """The texture video QP that goes with the geometry QP ``qp`` when ``texture_qp`` is not
+    given, so that one knob moves geometry and texture together along the joint
+    rate-distortion curve."""
+    return int(min(51, max(0, round(TEXTURE_QP_SLOPE * qp + TEXTURE_QP_OFFSET))))
+
+
+def texture_qp_rule() -> str:
+    """``texture_qp_for`` in words, for ``--help``."""
+    first, last = QP_RANGE
+    return f"QP {first} gives {texture_qp_for(first)}, {last} gives {texture_qp_for(last)}, " \
+           f"{TEXTURE_QP_SLOPE:g} per QP step in between"

@@ -279,6 +279,9 @@ def encode_to_file(path: str | os.PathLike, frames: Iterable, *, sequence: tuple
     opts, texture_options = api._split_options(options)
     textured = api._given_texture(texture)
     header = api._encoder(*sequence, opts).header_bytes()
+    if textured:
+        first, frames = api._peek(frames)
+        texture_options = texture.resolve_options(texture_options, opts["qp"], first if isinstance(first, Mesh) else read_again(first))
     groups = encoded_groups(frames, sequence, opts, texture_options if textured else None, False, jobs, ray)
     result = api.EncodeResult(b"")
     _atomic_write(Path(path), stream_chunks(header, groups, result, on_frame))

@@ -8,7 +8,8 @@ imported by the functions that use them, so importing this package costs neither
 from __future__ import annotations
 
 from . import atlas, video
-from .coder import TEXTURE_DEFAULTS, GroupHeader, TextureDecoder, TextureEncoder, check_options, pack_group, unpack_group
+from .coder import (TEXTURE_DEFAULTS, GroupHeader, TextureDecoder, TextureEncoder, atlas_size_for, check_options,
+                    pack_group, resolve_options, texture_qp_for, unpack_group)
 
-__all__ = ["TEXTURE_DEFAULTS", "GroupHeader", "TextureDecoder", "TextureEncoder", "atlas", "check_options",
+__all__ = ["TEXTURE_DEFAULTS", "GroupHeader", "TextureDecoder", "TextureEncoder", "atlas", "atlas_size_for", "check_options", "resolve_options", "texture_qp_for",
            "pack_group", "unpack_group", "video"]

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import _core
-from ..defaults import TEXTURE, FrameType
+from ..defaults import TEXTURE, FrameType, texture_qp_for
 from ..mesh import Mesh
 from . import atlas, video
 
@@ -77,17 +77,53 @@ def unpack_group(data: bytes) -> GroupHeader:
 
 
 def check_options(options: dict) -> dict:
-    """The texture options with defaults filled in; raises ValueError for a bad one."""
+    """The texture options with defaults filled in; raises ValueError for a bad one.
+    ``texture_size`` and ``texture_qp`` may be None: chosen by ``resolve_options``."""
     opts = {**TEXTURE_DEFAULTS, **options}
     size = opts["texture_size"]
-    if not isinstance(size, int) or not (16 <= size <= 16384) or size % 2:
+    if size is not None and (not isinstance(size, int) or not (16 <= size <= 16384) or size % 2):
         raise ValueError(f"texture_size must be an even integer from 16 to 16384, not {size!r}")
     if opts["texture_codec"] not in video.CODECS:
         raise ValueError(f"texture_codec must be one of {', '.join(video.CODECS)}, not {opts['texture_codec']!r}")
     qp = opts["texture_qp"]
-    if not isinstance(qp, int) or not 0 <= qp <= 51:
+    if qp is not None and (not isinstance(qp, int) or not 0 <= qp <= 51):
         raise ValueError(f"texture_qp must be an integer from 0 to 51, not {qp!r}")
     return opts
+
+
+def atlas_size_for(width: int, height: int) -> int:
+    """The atlas side that holds about the texels of a ``width`` x ``height`` source texture:
+    the square root of its texel count, to a multiple of 16 (the video's block size), within
+    the 16-16384 the stream allows. A 1024 x 1024 source gives 1024: an atlas of more texels
+    than the source has only spends bits on upsampled texture."""
+    side = 16 * round((width * height) ** 0.5 / 16)
+    return int(min(16384, max(16, side)))
+
+
+def resolve_options(options: dict, qp: int, first: Mesh) -> dict:
+    """Checked texture options with the ones left to the encoder chosen: ``texture_size``
+    from the texel count of the first frame's texture (``atlas_size_for``), ``texture_qp``
+    from the geometry QP (``texture_qp_for``). Every group of a stream uses them, so that
+    a parallel encode agrees with a sequential one."""
+    opts = check_options(options)
+    if opts["texture_size"] is None:
+        opts["texture_size"] = atlas_size_for(*_texture_shape(first))
+    if opts["texture_qp"] is None:
+        opts["texture_qp"] = texture_qp_for(qp)
+    return opts
+
+
+def _texture_shape(m: Mesh) -> tuple[int, int]:
+    """(width, height) of a frame's texture, from its pixels or its file's header."""
+    if m.image is not None:
+        return m.image.shape[1], m.image.shape[0]
+    from PIL import Image
+
+    try:
+        with Image.open(m.texture) as im:
+            return im.size
+    except OSError as e:
+        raise ValueError(f"cannot read texture image {m.texture}: {e}") from None
 
 
 @dataclass
@@ -96,6 +132,7 @@ class _Group:
     atlas: bytes
     uv: np.ndarray
     uv_faces: np.ndarray
+    base_faces: np.ndarray
     images: list = field(default_factory=list)
 
 
@@ -108,6 +145,8 @@ class TextureEncoder:
 
     def __init__(self, subdiv: int, options: dict, keep_images: bool = False):
         opts = check_options(options)
+        if opts["texture_size"] is None or opts["texture_qp"] is None:
+            raise ValueError("TextureEncoder needs a texture_size and texture_qp (resolve_options chooses them)")
         self.size, self.qp, self.codec = opts["texture_size"], opts["texture_qp"], opts["texture_codec"]
         self.subdiv = subdiv
         self.keep_images = keep_images
@@ -118,11 +157,15 @@ class TextureEncoder:
 
     def add(self, frame_type: FrameType, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> tuple[int, bytes] | None:
         closed = None
-        if frame_type == FrameType.INTRA or self._group is None:
+        g = self._group
+        # A group's atlas fits one base connectivity: an intra frame, and a predicted frame
+        # whose base is not its group's (refreshed faces, or a reference from before the
+        # group), start a new one.
+        if frame_type == FrameType.INTRA or g is None or not np.array_equal(base.faces, g.base_faces):
             closed = self._close()
             data, uv_faces, uv = atlas.coded_atlas(base.positions, base.faces, self.size)
             uv, uv_faces = _core.subdivide_uv(uv, uv_faces, self.subdiv)
-            self._group = _Group(self._frame, data, uv, uv_faces)
+            self._group = _Group(self._frame, data, uv, uv_faces, base.faces)
         g = self._group
         texture, _ = _core.transfer_texture(
             reconstruction.positions, reconstruction.faces, g.uv, g.uv_faces,
