@@ -118,6 +118,12 @@ def test_experiment_file_is_parsed_with_shared_and_own_rate_points(experiment, t
     (lambda t: t.replace("grid_size", "grid"), "unknown key(s) grid"),
     (lambda t: t + "[[variants]]\nname = \"dm\"\ncodec = \"dynmesh\"\nrates = \"dm\"\n", "name 'dm' appears twice"),
     (lambda t: t.replace("[[sequences]]", "[[sequences]"), "invalid TOML"),
+    (lambda t: t.replace("peak = 2.5", "peak = 2.5\nfps = 0"), "sequence 'wobbly': fps must be positive"),
+    (lambda t: t.replace("peak = 2.5", 'peak = 2.5\nfps = "6"'), "'fps' must be int/float"),
+    (lambda t: 'baselines = ["drako"]\n' + t, "baselines: 'drako' is not a variant"),
+    (lambda t: 'baselines = ["dm"]\n' + t, "baselines: 'dm' is the anchor"),
+    (lambda t: 'baselines = "draco"\n' + t, "'baselines' must be list"),
+    (lambda t: 'baselines = ["draco", "draco"]\n' + t, "baselines: name 'draco' appears twice"),
 ])
 def test_bad_experiment_files_fail_in_one_line(experiment, capsys, edit, message):
     experiment.write_text(edit(experiment.read_text()))
@@ -127,6 +133,33 @@ def test_bad_experiment_files_fail_in_one_line(experiment, capsys, edit, message
     assert eval_cli(experiment) == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("dynmesh eval: error:") and message in err and "\n" not in err
+
+
+def test_a_sequence_fps_overrides_the_experiments_and_is_part_of_the_run_key(experiment):
+    text = experiment.read_text()
+    # A second sequence without its own fps keeps the top-level one.
+    second = '[[sequences]]\nname = "again"\npath = "frames"\ncount = 2\n'
+    experiment.write_text(text.replace("peak = 2.5", "peak = 2.5\nfps = 6") + second)
+    exp = evaluate.load_experiment(experiment)
+    assert exp.fps == 30 and [(s.name, s.fps) for s in exp.sequences] == [("wobbly", 6.0), ("again", 30.0)]
+    runs = evaluate.plan_runs(exp)
+    assert {r.sequence.name: r.fps for r in runs} == {"wobbly": 6.0, "again": 30.0}
+    assert [s["fps"] for s in evaluate.results_document(exp, [])["sequences"]] == [6.0, 30.0]
+    own = {r.id: r.key() for r in runs if r.sequence.name == "wobbly"}
+
+    experiment.write_text(text)  # at the top-level 30 fps: other keys
+    at30 = {r.id: r.key() for r in evaluate.plan_runs(evaluate.load_experiment(experiment))}
+    assert own.keys() == at30.keys() and all(own[i] != at30[i] for i in own)
+    experiment.write_text(text.replace("grid_size = 128", "grid_size = 128\nfps = 6"))  # 6 fps from the top: same keys
+    assert {r.id: r.key() for r in evaluate.plan_runs(evaluate.load_experiment(experiment))} == own
+
+
+def test_a_run_counts_its_rate_at_its_sequences_fps(experiment):
+    experiment.write_text(experiment.read_text().replace("peak = 2.5", "peak = 2.5\nfps = 6"))
+    run = evaluate.plan_runs(evaluate.load_experiment(experiment))[0]
+    record = evaluate.measure(run)
+    assert record["fps"] == 6 and record["mbps"] == pytest.approx(record["bytes"] * 8 / 2 * 6 / 1e6)
+    assert record["bits_per_frame"] == pytest.approx(record["bytes"] * 8 / 2)
 
 
 def test_missing_experiment_file_fails_cleanly(tmp_path, capsys):
@@ -370,6 +403,8 @@ def test_points_variant_in_results_and_report_as_test_and_as_anchor(experiment, 
     ("csv", ",0,2.5\nwobbly,AI,R2", ",0,2.6\nwobbly,AI,R2", "points.csv: line 2: peak 2.6 differs"),
     ("toml", "peak = 2.5\n\n[rates", "\n[rates", "points.csv: line 2: the file's points are at peak 2.5"),
     ("toml", "count = 2", "count = 3", "points.csv: line 2: 5000 bytes over the sequence's 3 frames"),
+    ("toml", "count = 2\npeak = 2.5", "count = 2\npeak = 2.5\nfps = 6",
+     "points.csv: line 2: 5000 bytes over the sequence's 2 frames at 6 fps are 0.1200 Mbit/s, the file says 0.6"),
 ])
 def test_bad_points_files_fail_naming_file_and_line(points_experiment, capsys, target, old, new, message):
     path = points_experiment.parent / "points.csv" if target == "csv" else points_experiment
@@ -381,6 +416,39 @@ def test_bad_points_files_fail_naming_file_and_line(points_experiment, capsys, t
     assert eval_cli(points_experiment) == 1
     err = capsys.readouterr().err.strip()
     assert err.startswith("dynmesh eval: error:") and message in err and "\n" not in err
+
+
+TEXTURED_POINTS_HEADER = "seq,cond,rate,bytes,geom_bytes,tex_bytes,mbps,d1,d2,y,cb,cr,peak"
+
+
+def textured_points_row(seq, rate, size, geom, tex, d1, d2, y, cb, cr, frames=2, fps=6, peak=2.5) -> str:
+    return f"{seq},AI,{rate},{size},{geom},{tex},{8 * size / frames * fps / 1e6!r},{d1},{d2},{y},{cb},{cr},{peak}"
+
+
+def test_points_variant_reads_the_texture_columns_at_the_sequences_fps(points_experiment):
+    points_experiment.write_text(points_experiment.read_text().replace("count = 2\npeak = 2.5",
+                                                                       "count = 2\npeak = 2.5\nfps = 6"))
+    csv_path = points_experiment.parent / "points.csv"
+    rows = [textured_points_row("wobbly", "R1", 5000, 3000, 1900, 60.5, 64.25, 35.5, 43.0, 44.0),
+            textured_points_row("wobbly", "R2", 9000, 4000, 4900, 70.5, 74.0, 38.5, 44.0, 45.5)]
+    csv_path.write_text("\n".join([TEXTURED_POINTS_HEADER] + rows) + "\n")
+    first, second = evaluate.load_experiment(points_experiment).variant("tm").points
+    # Counted at the sequence's 6 fps: the check of bytes against Mbit/s passes at 6 fps only.
+    assert first["fps"] == 6 and first["mbps"] == pytest.approx(8 * 5000 / 2 * 6 / 1e6)
+    assert (first["y_psnr"], first["cb_psnr"], first["cr_psnr"]) == (35.5, 43.0, 44.0)
+    assert first["geometry_mbps"] == pytest.approx(8 * 3000 / 2 * 6 / 1e6)
+    assert first["texture_mbps"] == pytest.approx(8 * 1900 / 2 * 6 / 1e6)
+    assert second["cr_psnr"] == 45.5 and second["texture_mbps"] == pytest.approx(8 * 4900 / 2 * 6 / 1e6)
+
+    for old, new, message in [
+        (",3000,1900,", ",3000,2100,", "line 2: geom_bytes 3000 + tex_bytes 2100 exceed the stream's 5000 bytes"),
+        (",38.5,", ",abc,", "line 3: column 'y': 'abc' is not a number"),
+        (",4000,4900,", ",4000,4.9e3,", "line 3: column 'tex_bytes': '4.9e3' is not an integer"),
+    ]:
+        csv_path.write_text("\n".join([TEXTURED_POINTS_HEADER] + rows).replace(old, new) + "\n")
+        with pytest.raises(evaluate.ConfigError) as e:
+            evaluate.load_experiment(points_experiment)
+        assert message in str(e.value) and "points.csv" in str(e.value)
 
 
 def test_tm14_experiment_reads_the_shared_test_model_points():

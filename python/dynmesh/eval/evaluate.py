@@ -9,6 +9,7 @@ and decode wall time.
 The experiment file (paths are relative to the file's directory)::
 
     anchor = "dynmesh-ai"     # BD-rates are measured against this variant (default: the first)
+    baselines = ["draco"]     # optional: further reference variants, a BD-rate table each
     fps = 30                  # optional: frames per second for Mbit/s (default 30)
     grid_size = 1024          # optional: metric sampling grid (default 1024)
 
@@ -18,6 +19,7 @@ The experiment file (paths are relative to the file's directory)::
     start = 0                           # optional: first frame (index; number for printf)
     count = 10                          # optional: number of frames (default: all)
     peak = 18.75                        # optional: PSNR peak (default: largest box side)
+    fps = 30                            # optional: this sequence's frame rate (default: the top-level fps)
 
     [rates.dynmesh]                     # a named set of rate points, shared by name
     R1 = { qp = 46, base_ratio = 0.0078125, bits = 9 }
@@ -42,15 +44,20 @@ The experiment file (paths are relative to the file's directory)::
     where = { cond = "AI" }             # optional: keep the rows with this text in the column
     columns = { sequence = "seq" }      # optional: the file's column for a field; defaults:
     # sequence = "seq", rate = "rate", mbps = "mbps", d1 = "d1", d2 = "d2", bytes = "bytes",
-    # enc = "enc_s_per_frame", dec = "dec_s_per_frame", peak = "peak"
+    # enc = "enc_s_per_frame", dec = "dec_s_per_frame", peak = "peak", y = "y", cb = "cb",
+    # cr = "cr", geom_bytes = "geom_bytes", tex_bytes = "tex_bytes"
 
 ``title`` (top level) and ``description`` (per variant) are free text for readers and
 are otherwise ignored; any other unknown key is an error, so a typo cannot go unnoticed.
+A sequence's ``fps`` (a capture subsampled in time, say) overrides the top-level one for
+that sequence's runs and points: their Mbit/s, and the check of a points file's bytes.
+``baselines`` names variants (other than the anchor) that the report also takes as the
+reference, each in a BD-rate table of its own, beside the anchor's.
 A run's options are the codec defaults, overridden by the variant's ``options``,
 overridden by the rate point's. Every finished run is saved at once to
 ``OUT/runs/<sequence>__<variant>__<rate>.json`` (temporary file + rename) together
 with a key hashed from everything that determines its result (codec and its build,
-full options, frame files, peak, grid, fps); a later call reuses a saved run whose key
+full options, frame files, peak, grid, the sequence's fps); a later call reuses a saved run whose key
 matches, so an interrupted experiment resumes and a changed option reruns only what
 it changes. ``OUT/results.json`` and ``OUT/results.csv`` collect all runs.
 
@@ -60,14 +67,19 @@ becomes that sequence's record for the rate point its rate column names, with th
 fields of a measured run the file has: ``mbps``, ``d1_psnr``, ``d2_psnr``, and
 ``bytes``, ``encode_s_per_frame``, ``decode_s_per_frame``, ``peak`` when the file has
 those columns (the sequence, rate, mbps, d1 and d2 columns it must have, and any
-column named in ``columns`` or ``where``); ``frames`` and ``fps`` are the experiment's
-and ``source`` is the CSV's path relative to the experiment file. A sequence without
+column named in ``columns`` or ``where``); the texture's ``y_psnr``, ``cb_psnr``,
+``cr_psnr`` from columns y, cb, cr, and ``geometry_mbps``, ``texture_mbps`` from the
+bytes of columns geom_bytes and tex_bytes (as the file splits them: its ``bytes`` may
+hold more, headers say, and must not hold less), as a measured textured run has them;
+``frames`` and ``fps`` are the sequence's and ``source`` is the CSV's path relative to
+the experiment file. A sequence without
 rows has no points of that variant. The points are neither run nor cached; they are
 checked instead, each failure a ConfigError naming the CSV and the line: numbers must
 parse, each sequence and rate appear once, a ``peak`` column needs the sequence to
 declare a peak within 1e-3 relative (PSNRs at different peaks do not compare), and
-``bytes`` over the sequence's frames at ``fps`` must give the file's Mbit/s within 2 %
-(else the points were measured on other frames or at another frame rate).
+``bytes`` over the sequence's frames at the sequence's ``fps`` must give the file's
+Mbit/s within 2 % (else the points were measured on other frames or at another frame
+rate).
 """
 
 from __future__ import annotations
@@ -167,6 +179,7 @@ class Sequence:
     name: str
     frames: tuple[Path, ...]
     peak: float | None
+    fps: float  # its own, else the experiment's
 
 
 @dataclass(frozen=True)
@@ -199,6 +212,7 @@ class Experiment:
     grid_size: int
     sequences: list[Sequence]
     variants: list[Variant]
+    baselines: list[str] = field(default_factory=list)
 
     @property
     def name(self) -> str:
@@ -208,17 +222,20 @@ class Experiment:
         return next(v for v in self.variants if v.name == name)
 
 
-_TOP_KEYS = {"anchor", "fps", "grid_size", "sequences", "variants", "rates", "title", "description"}
-_SEQUENCE_KEYS = {"name", "path", "start", "count", "peak"}
+_TOP_KEYS = {"anchor", "baselines", "fps", "grid_size", "sequences", "variants", "rates", "title", "description"}
+_SEQUENCE_KEYS = {"name", "path", "start", "count", "peak", "fps"}
 _VARIANT_KEYS = {"name", "codec", "options", "rates", "description"}
 _POINTS_KEYS = {"name", "codec", "csv", "where", "columns", "description"}
 #: The codec of a variant whose records are read from a CSV file instead of measured.
 POINTS = "points"
 #: Record field (as ``columns`` names it) -> default CSV column.
 _POINT_COLUMNS = {"sequence": "seq", "rate": "rate", "mbps": "mbps", "d1": "d1", "d2": "d2", "bytes": "bytes",
-                  "enc": "enc_s_per_frame", "dec": "dec_s_per_frame", "peak": "peak"}
+                  "enc": "enc_s_per_frame", "dec": "dec_s_per_frame", "peak": "peak",
+                  "y": "y", "cb": "cb", "cr": "cr", "geom_bytes": "geom_bytes", "tex_bytes": "tex_bytes"}
 #: Fields a CSV may lack (unless ``columns`` names their column): the record lacks them then.
-_OPTIONAL_COLUMNS = {"bytes", "enc", "dec", "peak"}
+_OPTIONAL_COLUMNS = {"bytes", "enc", "dec", "peak", "y", "cb", "cr", "geom_bytes", "tex_bytes"}
+#: Integer fields of a points file.
+_BYTE_COLUMNS = {"bytes", "geom_bytes", "tex_bytes"}
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.+-]*$")
 
 
@@ -244,25 +261,33 @@ def load_experiment(path: str | os.PathLike) -> Experiment:
     _no_unknown(doc, _TOP_KEYS, where)
     base = path.resolve().parent
 
-    sequences = [_sequence(s, base, f"{where}: sequences[{i}]")
-                 for i, s in enumerate(_list_of_tables(doc, "sequences", where))]
-    _unique([s.name for s in sequences], f"{where}: sequences")
     fps = float(_get(doc, "fps", (int, float), where, default=30))
     grid = _get(doc, "grid_size", int, where, default=1024)
     if not fps > 0 or grid < 2:
         raise ConfigError(f"{where}: fps must be positive and grid_size at least 2")
+    sequences = [_sequence(s, base, fps, f"{where}: sequences[{i}]")
+                 for i, s in enumerate(_list_of_tables(doc, "sequences", where))]
+    _unique([s.name for s in sequences], f"{where}: sequences")
     rate_sets = _get(doc, "rates", dict, where, default={})
-    variants = [_variant(v, rate_sets, sequences, fps, base, f"{where}: variants[{i}]")
+    variants = [_variant(v, rate_sets, sequences, base, f"{where}: variants[{i}]")
                 for i, v in enumerate(_list_of_tables(doc, "variants", where))]
     _unique([v.name for v in variants], f"{where}: variants")
 
-    anchor = _get(doc, "anchor", str, where, default=variants[0].name)
-    if anchor not in {v.name for v in variants}:
-        raise ConfigError(f"{where}: anchor {anchor!r} is not a variant (variants: {', '.join(v.name for v in variants)})")
-    return Experiment(path, anchor, fps, grid, sequences, variants)
+    names = [v.name for v in variants]
+    anchor = _get(doc, "anchor", str, where, default=names[0])
+    if anchor not in names:
+        raise ConfigError(f"{where}: anchor {anchor!r} is not a variant (variants: {', '.join(names)})")
+    baselines = _get(doc, "baselines", list, where, default=[])
+    for b in baselines:
+        if not isinstance(b, str) or b not in names:
+            raise ConfigError(f"{where}: baselines: {b!r} is not a variant (variants: {', '.join(names)})")
+        if b == anchor:
+            raise ConfigError(f"{where}: baselines: {b!r} is the anchor, whose table the report has anyway")
+    _unique(baselines, f"{where}: baselines")
+    return Experiment(path, anchor, fps, grid, sequences, variants, baselines)
 
 
-def _sequence(t: dict, base: Path, where: str) -> Sequence:
+def _sequence(t: dict, base: Path, fps: float, where: str) -> Sequence:
     _no_unknown(t, _SEQUENCE_KEYS, where)
     name = _name(t, where)
     where = f"{where.rsplit(':', 1)[0]}: sequence {name!r}"
@@ -272,16 +297,20 @@ def _sequence(t: dict, base: Path, where: str) -> Sequence:
     peak = _get(t, "peak", (int, float), where, default=None)
     if peak is not None and not peak > 0:
         raise ConfigError(f"{where}: peak must be positive, got {peak}")
+    fps = _get(t, "fps", (int, float), where, default=fps)
+    if not fps > 0:
+        raise ConfigError(f"{where}: fps must be positive, got {fps}")
     # Relative to the experiment file, whatever the current directory is.
     full = spec if os.path.isabs(spec) else str(base / spec)
     try:
         frames = resolve_sequence(full, start, count)
     except SequenceError as e:
         raise ConfigError(f"{where}: path {spec!r}: {e}") from None
-    return Sequence(name, tuple(Path(os.path.normpath(p)) for p in frames), None if peak is None else float(peak))
+    return Sequence(name, tuple(Path(os.path.normpath(p)) for p in frames), None if peak is None else float(peak),
+                    float(fps))
 
 
-def _variant(t: dict, rate_sets: dict, sequences: list[Sequence], fps: float, base: Path, where: str) -> Variant:
+def _variant(t: dict, rate_sets: dict, sequences: list[Sequence], base: Path, where: str) -> Variant:
     name = _name(t, where)
     where = f"{where.rsplit(':', 1)[0]}: variant {name!r}"
     codec = _get(t, "codec", str, where)
@@ -289,7 +318,7 @@ def _variant(t: dict, rate_sets: dict, sequences: list[Sequence], fps: float, ba
         raise ConfigError(f"{where}: unknown codec {codec!r} (known: {', '.join([*CODECS, POINTS])})")
     _no_unknown(t, _POINTS_KEYS if codec == POINTS else _VARIANT_KEYS, where)
     if codec == POINTS:
-        return _points_variant(t, name, sequences, fps, base, where)
+        return _points_variant(t, name, sequences, base, where)
     options = _get(t, "options", dict, where, default={})
     rates = _get(t, "rates", (str, dict), where)
     if isinstance(rates, str):
@@ -313,7 +342,7 @@ def _variant(t: dict, rate_sets: dict, sequences: list[Sequence], fps: float, ba
     return Variant(name, codec, options, points)
 
 
-def _points_variant(t: dict, name: str, sequences: list[Sequence], fps: float, base: Path, where: str) -> Variant:
+def _points_variant(t: dict, name: str, sequences: list[Sequence], base: Path, where: str) -> Variant:
     """A points variant with the records of its CSV's kept rows (module docstring)."""
     spec = _get(t, "csv", str, where)
     keep = _text_table(t, "where", where)
@@ -341,7 +370,7 @@ def _points_variant(t: dict, name: str, sequences: list[Sequence], fps: float, b
             seq = by_name.get(row[columns["sequence"]])
             if seq is None or any(row[c] != v for c, v in keep.items()):
                 continue
-            point = _point(row, columns, seq, name, source, fps, f"{at}: line {reader.line_num}")
+            point = _point(row, columns, seq, name, source, f"{at}: line {reader.line_num}")
             run = (seq.name, point["rate"])
             if run in lines:
                 raise ConfigError(f"{at}: line {reader.line_num}: sequence {seq.name!r} rate {point['rate']!r} "
@@ -353,25 +382,32 @@ def _points_variant(t: dict, name: str, sequences: list[Sequence], fps: float, b
     return Variant(name, POINTS, {}, [], source, keep, points)
 
 
-def _point(row: dict, columns: dict, seq: Sequence, variant: str, source: str, fps: float, at: str) -> dict:
+def _point(row: dict, columns: dict, seq: Sequence, variant: str, source: str, at: str) -> dict:
     """The record of one CSV row (module docstring); ``at`` names the file and line."""
     rate = row[columns["rate"]] or ""
     if not _NAME.match(rate):
         raise ConfigError(f"{at}: rate {rate!r} must be letters, digits, '_', '-', '.', '+'")
-    num = {f: _number(row[c], int if f == "bytes" else float, f"{at}: column {c!r}")
+    num = {f: _number(row[c], int if f in _BYTE_COLUMNS else float, f"{at}: column {c!r}")
            for f, c in columns.items() if f not in ("sequence", "rate")}
     if "peak" in num:
         _check_peak(num["peak"], seq, at)
-    frames = len(seq.frames)
+    frames, fps = len(seq.frames), seq.fps
     if "bytes" in num and abs(_mbps(num["bytes"], frames, fps) - num["mbps"]) > 0.02 * num["mbps"]:
         raise ConfigError(f"{at}: {num['bytes']} bytes over the sequence's {frames} frames at {fps:g} fps are "
                           f"{_mbps(num['bytes'], frames, fps):.4f} Mbit/s, the file says {num['mbps']:g}: "
                           f"were the points measured on other frames?")
+    parts = [f for f in ("geom_bytes", "tex_bytes") if f in num]
+    if "bytes" in num and parts and sum(num[f] for f in parts) > num["bytes"]:
+        split = " + ".join(f"{f} {num[f]}" for f in parts)
+        raise ConfigError(f"{at}: {split} exceed the stream's {num['bytes']} bytes")
     return {
         "schema": SCHEMA, "sequence": seq.name, "variant": variant, "codec": POINTS, "source": source, "rate": rate,
         "frames": frames, "peak": num.get("peak", seq.peak), "fps": fps,
         **({"bytes": num["bytes"]} if "bytes" in num else {}),
         "bits_per_frame": num["mbps"] * 1e6 / fps, "mbps": num["mbps"], "d1_psnr": num["d1"], "d2_psnr": num["d2"],
+        **{key: num[f] for f, key in zip(("y", "cb", "cr"), COLOUR_FIELDS) if f in num},
+        **{key: _mbps(num[f], frames, fps)
+           for f, key in (("geom_bytes", "geometry_mbps"), ("tex_bytes", "texture_mbps")) if f in num},
         **{key: num[f] for f, key in (("enc", TIMING_FIELDS[0]), ("dec", TIMING_FIELDS[1])) if f in num},
     }
 
@@ -491,7 +527,7 @@ def plan_runs(exp: Experiment) -> list[Run]:
     """All runs in report order: sequence, then variant, then rate point. A points
     variant has none: its records come from its file (``Variant.points``)."""
     base = exp.path.resolve().parent
-    return [Run(s, v.name, v.codec, r.name, r.options, exp.fps, exp.grid_size, base)
+    return [Run(s, v.name, v.codec, r.name, r.options, s.fps, exp.grid_size, base)
             for s in exp.sequences for v in exp.variants for r in v.rates]
 
 
@@ -658,9 +694,10 @@ def results_document(exp: Experiment, records: list[dict]) -> dict:
     return {
         "experiment": exp.name,
         "anchor": exp.anchor,
+        "baselines": exp.baselines,
         "fps": exp.fps,
         "grid_size": exp.grid_size,
-        "sequences": [{"name": s.name, "frames": len(s.frames), "peak": s.peak,
+        "sequences": [{"name": s.name, "frames": len(s.frames), "peak": s.peak, "fps": s.fps,
                        "first": Path(os.path.relpath(s.frames[0], base)).as_posix()} for s in exp.sequences],
         "variants": [{"name": v.name, "codec": v.codec, "source": v.source, "where": v.where} if v.codec == POINTS
                      else {"name": v.name, "codec": v.codec, "options": v.options,
