@@ -451,6 +451,107 @@ def test_points_variant_reads_the_texture_columns_at_the_sequences_fps(points_ex
         assert message in str(e.value) and "points.csv" in str(e.value)
 
 
+def checker_image(size: int = 64) -> np.ndarray:
+    """A smooth colour field with a checker on top, to texture the test frames."""
+    y, x = np.mgrid[0:size, 0:size] / size
+    rgb = [0.5 + 0.4 * np.sin(2 * np.pi * (x + 0.7 * y) + p) for p in (0.0, 2.0, 4.0)]
+    check = ((np.floor(x * 8) + np.floor(y * 8)) % 2) * 0.15
+    return np.clip(np.stack(rgb, -1) * 255 * (0.85 + check[..., None]), 0, 255).astype(np.uint8)
+
+
+TEXTURED_EXPERIMENT = """\
+anchor = "dm"
+grid_size = 128
+
+[[sequences]]
+name = "skin"
+path = "textured"
+fps = 6
+peak = 2.5
+
+[rates.q]
+R1 = { qp = 40, texture_qp = 42 }
+R2 = { qp = 28, texture_qp = 26 }
+
+[[variants]]
+name = "dm"
+codec = "dynmesh"
+options = { base_ratio = 0.25, texture_size = 256 }
+rates = "q"
+
+[[variants]]
+name = "dm-ai"
+codec = "dynmesh"
+options = { base_ratio = 0.25, texture_size = 256, intra_period = 1 }
+rates = "q"
+"""
+
+
+def test_textured_runs_against_textured_points_and_a_baseline(tmp_path, count_encodes):
+    """A textured sequence at its own 6 fps: runs measure Y/Cb/Cr and the two rates, the
+    points file gives them too, and the report has D1, D2, Y, Cb and Cr BD-rates at the
+    total rate against the anchor and against the baseline, and their RD plots."""
+    from dynmesh.io import write_image
+    from dynmesh.mesh import Mesh
+
+    folder = tmp_path / "textured"
+    folder.mkdir()
+    write_image(folder / "skin.png", checker_image())
+    for i, m in enumerate(wobbly_sequence(2, 10, 14)):
+        d = m.positions / np.linalg.norm(m.positions, axis=1, keepdims=True)
+        uv = np.stack([0.5 + np.arctan2(d[:, 1], d[:, 0]) / (2 * np.pi), np.arccos(np.clip(d[:, 2], -1, 1)) / np.pi], 1)
+        write_mesh(folder / f"f{i}.obj", Mesh(m.positions, m.faces, uvs=uv, uv_faces=m.faces.copy(),
+                                              texture=folder / "skin.png"))
+    experiment, out, docs = tmp_path / "tex.toml", tmp_path / "out", tmp_path / "docs"
+    experiment.write_text(TEXTURED_EXPERIMENT)
+    assert eval_cli(experiment, "--out", out) == 0
+    dm = [r for r in evaluate.load_results(out)["runs"] if r["variant"] == "dm"]
+    for r in dm:
+        assert r["fps"] == 6 and r["mbps"] == pytest.approx(r["bytes"] * 8 / 2 * 6 / 1e6)
+        assert r["geometry_mbps"] + r["texture_mbps"] == pytest.approx(r["mbps"])
+        assert all(20 < r[k] < 99 for k in evaluate.COLOUR_FIELDS)
+    assert dm[1]["y_psnr"] > dm[0]["y_psnr"] and dm[1]["bytes"] > dm[0]["bytes"]
+
+    # Points 10 % cheaper than dm in total at the same PSNRs, with a texture half as dear:
+    # BD-rates at the texture rate would be near -50 %, at the total rate they are -10 %.
+    rows = []
+    for r in dm:
+        size, tex = round(0.9 * r["bytes"]), round(0.5 * r["texture_mbps"] * 1e6 / 8 * 2 / 6)
+        rows.append(textured_points_row("skin", r["rate"], size, size - tex - 4, tex, r["d1_psnr"], r["d2_psnr"],
+                                        r["y_psnr"], r["cb_psnr"], r["cr_psnr"]))
+    (tmp_path / "tm.csv").write_text("\n".join([TEXTURED_POINTS_HEADER] + rows) + "\n")
+    experiment.write_text(TEXTURED_EXPERIMENT.replace('anchor = "dm"', 'anchor = "tm"\nbaselines = ["dm-ai"]')
+                          + '\n[[variants]]\nname = "tm"\ncodec = "points"\ncsv = "tm.csv"\n')
+    assert eval_cli(experiment, "--out", out, "--report", docs) == 0
+    assert count_encodes["dynmesh"] == 4  # the runs were reused
+
+    results = evaluate.load_results(out)
+    assert results["baselines"] == ["dm-ai"] and results["sequences"][0]["fps"] == 6
+    assert [label for _, label in report.metrics_of(results, "skin")] == ["D1", "D2", "Y", "Cb", "Cr"]
+    rows = {(r["sequence"], r["variant"]): r for r in report.bd_rows(results)}
+    for m in ("d1", "d2", "y", "cb", "cr"):
+        # dm against tm: 1 / 0.9 - 1, up to the rounding of the points' bytes to whole bytes.
+        assert rows["skin", "dm"][f"{m}_bd"] == pytest.approx(100 * (1 / 0.9 - 1), abs=0.1)
+        assert rows["skin", "dm"][f"{m}_note"] == "fewer than 4 rate points"
+        assert rows["skin", "dm-ai"][f"{m}_bd"] is not None
+    against_ai = report.bd_rows(results, "dm-ai")
+    assert {(r["sequence"], r["variant"], r["reference"]) for r in against_ai} == {
+        ("skin", "dm", "dm-ai"), ("skin", "tm", "dm-ai"), ("Average", "dm", "dm-ai"), ("Average", "tm", "dm-ai")}
+    assert all(r[f"{m}_bd"] is not None for r in against_ai for m in ("d1", "d2", "y", "cb", "cr"))
+
+    page = (docs / "results.md").read_text()
+    assert "## BD-rate against tm" in page and "## BD-rate against dm-ai" in page
+    first, second = page.split("## BD-rate against dm-ai")
+    assert "| Sequence | dm D1 | dm D2 | dm Y | dm Cb | dm Cr | dm enc | dm dec | dm-ai D1 |" in first
+    assert "| Sequence | dm D1 | dm D2 | dm Y | dm Cb | dm Cr | dm enc | dm dec | tm D1 |" in second
+    assert "Read the other way, dm-ai against tm:" in second
+    assert "| skin | 2 | 6 | `textured/f0.obj` | 2.5 |" in page and "(skin: 6)" in page
+    assert "| tm | R1 |" in page and "geometry Mbit/s" in page
+    for m in ("d1", "d2", "y", "cb", "cr"):
+        png = docs / "results" / "tex" / f"rd_skin_{m}.png"
+        assert f"(results/tex/{png.name})" in page and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_tm14_experiment_reads_the_shared_test_model_points():
     for name in ("basketball_player", "dancer", "mitch", "thomas"):
         shared_sequence(name)
@@ -570,6 +671,54 @@ def test_bd_rows_average_and_time_ratios():
     assert avg["sequence"] == "Average" and avg["d1_bd"] == pytest.approx(0.0, abs=1e-9)
     assert a["enc_ratio"] == pytest.approx(4.0) and avg["enc_ratio"] == pytest.approx(2.0)  # geometric mean
     assert math.isclose(avg["dec_ratio"], 2.0)
+
+
+def test_bd_rows_of_textured_sequences_at_total_rate_against_several_references():
+    def run(seq, var, mbps, psnr, colour, share=0.5):
+        r = {"sequence": seq, "variant": var, "rate": f"R{psnr}", "mbps": mbps, "d1_psnr": psnr,
+             "d2_psnr": psnr + 2, "encode_s_per_frame": 1.0, "decode_s_per_frame": 0.1}
+        if colour:  # the texture's share of the rate differs between variants: BD-rates use the total
+            r |= {"y_psnr": psnr - 30, "cb_psnr": psnr - 25, "cr_psnr": psnr - 24,
+                  "texture_mbps": share * mbps, "geometry_mbps": (1 - share) * mbps}
+        return r
+
+    curve = [(1, 60), (2, 65), (4, 69), (8, 72)]
+    runs = []
+    for seq, textured in (("tex", True), ("geo", False)):
+        runs += [run(seq, "a", r, p, textured) for r, p in curve]
+        runs += [run(seq, "b", 0.8 * r, p, textured, share=0.1) for r, p in curve]
+        runs += [run(seq, "c", 1.25 * r, p, textured, share=0.9) for r, p in curve]
+        runs += [run(seq, "geom", 0.5 * r, p, False) for r, p in curve]  # a geometry codec
+    results = {"anchor": "a", "baselines": ["c"], "variants": [{"name": v} for v in ("a", "b", "c", "geom")],
+               "sequences": [{"name": "tex"}, {"name": "geo"}], "runs": runs}
+    assert report.metrics_of(results, "geo") == report.METRICS
+    assert report.metrics_of(results, "tex") == report.metrics_of(results) == report.METRICS + report.COLOUR_METRICS
+
+    rows = {(r["sequence"], r["variant"]): r for r in report.bd_rows(results)}
+    for m in ("d1", "d2", "y", "cb", "cr"):
+        assert rows["tex", "b"][f"{m}_bd"] == pytest.approx(-20.0) and rows["tex", "b"][f"{m}_note"] == ""
+        assert rows["tex", "c"][f"{m}_bd"] == pytest.approx(25.0)
+    assert rows["tex", "geom"]["d1_bd"] == pytest.approx(-50.0)
+    assert rows["tex", "geom"]["y_bd"] is None and rows["tex", "geom"]["y_note"] == "no Y PSNR of geom"
+    assert rows["geo", "b"]["d2_bd"] == pytest.approx(-20.0)
+    assert rows["geo", "b"]["cr_bd"] is None and rows["geo", "b"]["cr_note"] == "no texture"
+    assert rows["Average", "b"]["y_bd"] == pytest.approx(-20.0)
+    assert rows["Average", "b"]["y_note"] == "over 1 of 2 sequences" and rows["Average", "b"]["d1_note"] == ""
+    assert {r["reference"] for r in rows.values()} == {"a"}
+
+    # Against the baseline c: every other variant, the anchor among them.
+    rows = {(r["sequence"], r["variant"]): r for r in report.bd_rows(results, "c")}
+    assert {v for _, v in rows} == {"a", "b", "geom"} and {r["reference"] for r in rows.values()} == {"c"}
+    assert rows["tex", "a"]["y_bd"] == pytest.approx(-20.0)  # 1 / 1.25 - 1
+    assert rows["tex", "b"]["cb_bd"] == pytest.approx(100 * (0.8 / 1.25 - 1))
+    table = report.bd_markdown(results, list(rows.values()), "c")
+    assert table.startswith("| Sequence | a D1 | a D2 | a Y | a Cb | a Cr | a enc | a dec | b D1 |")
+    tex, geo = (line for line in table.splitlines() if line.startswith(("| tex |", "| geo |")))
+    # Best of each metric: geom for D1 and D2, b for the texture's (geom has none); bold.
+    assert tex.endswith("| **geom** | **geom** | **b** | **b** | **b** |") and "| **-36.0 %** |" in tex
+    assert geo.endswith("| **geom** | **geom** | n/a | n/a | n/a |")  # no texture: no best
+    assert "Read the other way, c against b: D1 +56.2 %, D2 +56.2 %, Y +56.2 %, Cb +56.2 %" in table
+    assert "geo, a, Y: no texture" in table and "tex, geom, Cr: no Cr PSNR of geom" in table
 
 
 def test_two_experiments_share_a_page_and_each_rewrites_only_its_section(tmp_path):

@@ -8,7 +8,12 @@ piecewise cubic Hermite (PCHIP) interpolation of log10(Mbit/s) as a function of 
 averaged over the PSNR range both curves cover (the ``bjontegaard`` package,
 ``method="pchip"``, which matches the JCT-VC/JVET CTC spreadsheets). Negative means
 fewer bits than the anchor for the same quality. The average row is the arithmetic
-mean of the per-sequence BD-rates, as in the CTC spreadsheets.
+mean of the per-sequence BD-rates, as in the CTC spreadsheets. The rate is always the
+total rate (every byte of the stream), also for the texture PSNRs: for a textured
+sequence (one with runs that measured texture) the tables give D1, D2, Y, Cb and Cr
+BD-rates, as the V-DMC test conditions compare them. The experiment's ``baselines``
+are further references: the page has one BD-rate table against the anchor and one
+against each of them (``bd_rows(results, reference)``).
 
 Time ratios: test time / anchor time per frame, each side the geometric mean over its
 rate points; the average row is the geometric mean over sequences (CTC spreadsheets
@@ -34,23 +39,36 @@ import numpy as np
 __all__ = ["bd_rate", "bd_rows", "rd_points", "plot_rd", "markdown", "write_report"]
 
 METRICS = (("d1_psnr", "D1"), ("d2_psnr", "D2"))
-#: Added when the runs measured textures: BD-rates on total rate against luma PSNR.
-COLOUR_METRICS = (("y_psnr", "Y"),)
+#: Added for textured sequences: BD-rates on the total rate against each texture PSNR.
+COLOUR_METRICS = (("y_psnr", "Y"), ("cb_psnr", "Cb"), ("cr_psnr", "Cr"))
 
 
-def metrics_of(results: dict) -> tuple[tuple[str, str], ...]:
-    """(record key, label) of every PSNR the report compares: D1 and D2, and Y when every
-    run measured texture."""
-    return METRICS + (COLOUR_METRICS if _textured(results) else ())
+def metrics_of(results: dict, sequence: str | None = None) -> tuple[tuple[str, str], ...]:
+    """(record key, label) of every PSNR the report compares for ``sequence`` (for the
+    experiment's tables without one): D1 and D2, and Y, Cb and Cr when it is textured."""
+    return METRICS + (COLOUR_METRICS if _textured(results, sequence) else ())
 
 
-def _textured(results: dict) -> bool:
-    """Whether every run measured texture."""
-    return bool(results["runs"]) and all("y_psnr" in r for r in results["runs"])
+def _textured(results: dict, sequence: str | None = None) -> bool:
+    """Whether ``sequence`` (without one: any sequence) is textured: some run of it, measured
+    or taken from a file, has texture PSNRs. A variant without them (a geometry codec) then
+    shows n/a in the texture columns."""
+    return any("y_psnr" in r for r in results["runs"] if sequence is None or r["sequence"] == sequence)
+
+
+def _fps(results: dict, sequence: str) -> float:
+    """The frame rate of ``sequence``'s Mbit/s: its own, else the experiment's (results
+    written before sequences had one)."""
+    own = next((s.get("fps") for s in results["sequences"] if s["name"] == sequence), None)
+    return own or results["fps"]
 
 
 def _labels(results: dict) -> list[str]:
     return [label.lower() for _, label in metrics_of(results)]
+
+
+#: A metric's short name in the rows' keys (``d1``, ``cb``) -> its label (``D1``, ``Cb``).
+_LABEL = {label.lower(): label for _, label in METRICS + COLOUR_METRICS}
 
 
 def rd_points(results: dict, sequence: str, variant: str) -> list[dict]:
@@ -109,34 +127,47 @@ def _geomean(values) -> float | None:
     return float(np.exp(np.mean(np.log(values)))) if values else None
 
 
-def bd_rows(results: dict) -> list[dict]:
-    """One row per sequence and non-anchor variant, then one "Average" row per variant.
+def bd_rows(results: dict, reference: str | None = None) -> list[dict]:
+    """One row per sequence and variant other than ``reference`` (default: the anchor),
+    then one "Average" row per variant.
 
-    Row: sequence, variant, d1_bd, d2_bd (percent or None), d1_note, d2_note,
-    enc_ratio, dec_ratio (test time / anchor time, or None: also when a side has no
-    times). A side without points for the sequence gets the note "no points of NAME".
+    Row: sequence, variant, reference, d1_bd, d2_bd (percent or None), d1_note, d2_note,
+    and for textured experiments y_bd, cb_bd, cr_bd and their notes (all at total rate),
+    enc_ratio, dec_ratio (test time / reference time, or None: also when a side has no
+    times). A side without points for the sequence gets the note "no points of NAME",
+    one without a metric's PSNR "no Y PSNR of NAME"; a sequence without texture has no
+    texture BD-rates ("no texture").
     """
-    anchor = results["anchor"]
+    anchor = reference or results["anchor"]
     tests = [v["name"] for v in results["variants"] if v["name"] != anchor]
     rows = []
     for seq in (s["name"] for s in results["sequences"]):
         ref = rd_points(results, seq, anchor)
+        textured = _textured(results, seq)
         for var in tests:
             pts = rd_points(results, seq, var)
-            row = {"sequence": seq, "variant": var}
+            row = {"sequence": seq, "variant": var, "reference": anchor}
             # A file of points may skip a sequence: say so, not "fewer than 2 points".
             absent = " and ".join(v for v, p in ((anchor, ref), (var, pts)) if not p)
             for key, label in metrics_of(results):
-                bd = bd_rate([(r["mbps"], r[key]) for r in ref], [(r["mbps"], r[key]) for r in pts])
+                lacking = " and ".join(v for v, p in ((anchor, ref), (var, pts))
+                                       if any(r.get(key) is None for r in p))
+                if absent or (key in dict(COLOUR_METRICS) and not textured) or lacking:
+                    bd = {"bd_rate": None}
+                    note = (f"no points of {absent}" if absent else f"no {label} PSNR of {lacking}" if textured
+                            else "no texture")
+                else:
+                    bd = bd_rate([(r["mbps"], r[key]) for r in ref], [(r["mbps"], r[key]) for r in pts])
+                    note = bd["note"]
                 row[f"{label.lower()}_bd"] = bd["bd_rate"]
-                row[f"{label.lower()}_note"] = f"no points of {absent}" if absent else bd["note"]
+                row[f"{label.lower()}_note"] = note
             for key, short in (("encode_s_per_frame", "enc"), ("decode_s_per_frame", "dec")):
                 num, den = _geomean(r.get(key) for r in pts), _geomean(r.get(key) for r in ref)
                 row[f"{short}_ratio"] = num / den if num and den else None
             rows.append(row)
     for var in tests:
         mine = [r for r in rows if r["variant"] == var]
-        avg = {"sequence": "Average", "variant": var}
+        avg = {"sequence": "Average", "variant": var, "reference": anchor}
         for m in _labels(results):
             vals = [r[f"{m}_bd"] for r in mine]
             ok = [v for v in vals if v is not None]
@@ -152,7 +183,8 @@ def bd_rows(results: dict) -> list[dict]:
 
 
 def plot_rd(results: dict, sequence: str, metric: str, path: str | os.PathLike) -> Path:
-    """One RD plot (Mbit/s against PSNR, one line with markers per variant) as PNG."""
+    """One RD plot (total Mbit/s against PSNR, one line with markers per variant that has
+    the metric) as PNG."""
     # Figure + Agg canvas rather than pyplot: no global backend state, safe in any process.
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -164,12 +196,12 @@ def plot_rd(results: dict, sequence: str, metric: str, path: str | os.PathLike) 
     markers = "osD^vP*X"
     for i, v in enumerate(results["variants"]):
         pts = sorted(rd_points(results, sequence, v["name"]), key=lambda r: r["mbps"])
-        if not pts:
+        if not pts or any(r.get(metric) is None for r in pts):
             continue
         anchor = v["name"] == results["anchor"]
         ax.plot([r["mbps"] for r in pts], [r[metric] for r in pts], marker=markers[i % len(markers)],
                 linewidth=2.2 if anchor else 1.5, label=v["name"] + (" (anchor)" if anchor else ""))
-    ax.set_xlabel(f"rate (Mbit/s at {results['fps']:g} fps)")
+    ax.set_xlabel(f"total rate (Mbit/s at {_fps(results, sequence):g} fps)")
     ax.set_ylabel(f"{label} PSNR (dB)")
     ax.set_title(f"{sequence}: {label} PSNR")
     ax.grid(True, alpha=0.35)
@@ -207,19 +239,22 @@ def _md_table(head: list[str], rows: list[list[str]], align: str | None = None) 
     return "\n".join(["| " + " | ".join(head) + " |", rule] + ["| " + " | ".join(r) + " |" for r in rows])
 
 
-def bd_markdown(results: dict, rows: list[dict]) -> str:
-    """The BD-rate table: per sequence, for each variant D1 and D2 BD-rate and time ratios.
+def bd_markdown(results: dict, rows: list[dict], reference: str | None = None) -> str:
+    """The BD-rate table against ``reference`` (default: the anchor; ``rows`` are
+    ``bd_rows`` against it): per sequence, for each variant D1 and D2 (Y, Cb, Cr when
+    textured) BD-rate and time ratios.
 
-    In every row the best BD-rate of each metric is bold when it beats the anchor, and the
-    "best" columns name the variant with the fewest bits (the anchor when nothing beats it).
+    In every row the best BD-rate of each metric is bold when it beats the reference, and the
+    "best" columns name the variant with the fewest bits (the reference when nothing beats it,
+    n/a when no variant has a value).
     """
-    anchor = results["anchor"]
+    anchor = reference or results["anchor"]
     tests = [v["name"] for v in results["variants"] if v["name"] != anchor]
     labels = _labels(results)
     head = ["Sequence"]
     for v in tests:
-        head += [f"{v} {m.upper()}" for m in labels] + [f"{v} enc", f"{v} dec"]
-    head += [f"best {m.upper()}" for m in labels]
+        head += [f"{v} {_LABEL[m]}" for m in labels] + [f"{v} enc", f"{v} dec"]
+    head += [f"best {_LABEL[m]}" for m in labels]
     body, notes = [], []
     for seq in [s["name"] for s in results["sequences"]] + ["Average"]:
         mine = {r["variant"]: r for r in rows if r["sequence"] == seq}
@@ -228,40 +263,41 @@ def bd_markdown(results: dict, rows: list[dict]) -> str:
         for m in labels:
             vals = {v: mine[v][f"{m}_bd"] for v in tests if mine[v][f"{m}_bd"] is not None}
             winner = min(vals, key=vals.get) if vals else None
-            best[m] = winner if winner is not None and vals[winner] < 0 else anchor
+            best[m] = None if not vals else winner if vals[winner] < 0 else anchor
         for v in tests:
             r = mine[v]
             for m in labels:
                 text = _pct(r[f"{m}_bd"])
                 if r[f"{m}_note"]:
-                    notes.append(f"{seq}, {v}, {m.upper()}: {r[f'{m}_note']}")
+                    notes.append(f"{seq}, {v}, {_LABEL[m]}: {r[f'{m}_note']}")
                     text += f" [{len(notes)}]"
                 cells.append(f"**{text}**" if best[m] == v else text)
             cells += [_ratio(r["enc_ratio"]), _ratio(r["dec_ratio"])]
-        cells += [f"**{best[m]}**" for m in labels]
+        cells += ["n/a" if best[m] is None else f"**{best[m]}**" for m in labels]
         body.append(cells)
     out = _md_table(head, body, "l" + "r" * (len(head) - 1 - len(labels)) + "l" * len(labels))
-    out += "\n\n" + swapped_markdown(results, rows)
+    out += "\n\n" + swapped_markdown(results, rows, anchor)
     if notes:
         out += "\n\n" + "  \n".join(f"[{i}] {n}" for i, n in enumerate(notes, 1))
     return out
 
 
-def swapped_markdown(results: dict, rows: list[dict]) -> str:
-    """The same comparison read the other way: the anchor's BD-rate against each variant.
+def swapped_markdown(results: dict, rows: list[dict], reference: str | None = None) -> str:
+    """The same comparison read the other way: the reference's (default: the anchor's)
+    BD-rate against each variant.
 
     Swapping anchor and test negates the mean log-rate difference over the same PSNR
     interval, so the swapped BD-rate is exactly 1 / (1 + b) - 1 for each sequence; the
     average is again the arithmetic mean over sequences.
     """
-    anchor = results["anchor"]
+    anchor = reference or results["anchor"]
     lines = []
     for v in [v["name"] for v in results["variants"] if v["name"] != anchor]:
         mine = [r for r in rows if r["variant"] == v and r["sequence"] != "Average"]
         parts = []
         for m in _labels(results):
             vals = [100 * (1 / (1 + r[f"{m}_bd"] / 100) - 1) for r in mine if r[f"{m}_bd"] is not None]
-            parts.append(f"{m.upper()} {_pct(float(np.mean(vals)) if vals else None)}")
+            parts.append(f"{_LABEL[m]} {_pct(float(np.mean(vals)) if vals else None)}")
         lines.append(f"Read the other way, {anchor} against {v}: {', '.join(parts)} (mean over sequences).")
     return "  \n".join(lines)
 
@@ -272,13 +308,13 @@ def rd_markdown(results: dict, sequence: str) -> str:
     variants that have none."""
     colour = [("geometry_mbps", "geometry Mbit/s", ".3f"), ("texture_mbps", "texture Mbit/s", ".3f"),
               ("y_psnr", "Y PSNR (dB)", ".2f"), ("cb_psnr", "Cb PSNR (dB)", ".2f"),
-              ("cr_psnr", "Cr PSNR (dB)", ".2f")] if _textured(results) else []
+              ("cr_psnr", "Cr PSNR (dB)", ".2f")] if _textured(results, sequence) else []
     rows = []
     for v in results["variants"]:
         for r in rd_points(results, sequence, v["name"]):
             rows.append([v["name"], r["rate"], _figure(r, "bytes", ".0f", 1 / r["frames"]), f"{r['mbps']:.3f}",
                          f"{r['d1_psnr']:.2f}", f"{r['d2_psnr']:.2f}"]
-                        + [format(r[k], f) for k, _, f in colour]
+                        + [_figure(r, k, f) for k, _, f in colour]
                         + [_figure(r, k, ".1f", 1000) for k in ("encode_s_per_frame", "decode_s_per_frame")])
     head = (["variant", "rate", "bytes/frame", "Mbit/s", "D1 PSNR (dB)", "D2 PSNR (dB)"] + [h for _, h, _ in colour]
             + ["enc ms/frame", "dec ms/frame"])
@@ -290,9 +326,9 @@ def rd_markdown(results: dict, sequence: str) -> str:
 def conditions_markdown(results: dict) -> str:
     """Sequences (frames, peak) and variants (codec, rate point options; for points, the
     rows kept and the file)."""
-    seq = _md_table(["sequence", "frames", "first frame (relative to the experiment file)", "PSNR peak"],
-                    [[s["name"], str(s["frames"]), f"`{s['first']}`",
-                      "box side" if s["peak"] is None else f"{s['peak']:g}"] for s in results["sequences"]], "lrll")
+    seq = _md_table(["sequence", "frames", "fps", "first frame (relative to the experiment file)", "PSNR peak"],
+                    [[s["name"], str(s["frames"]), f"{_fps(results, s['name']):g}", f"`{s['first']}`",
+                      "box side" if s["peak"] is None else f"{s['peak']:g}"] for s in results["sequences"]], "lrrll")
     var_rows = []
     for v in results["variants"]:
         name = v["name"] + (" (anchor)" if v["name"] == results["anchor"] else "")
@@ -339,12 +375,21 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
         f"## BD-rate against {results['anchor']}",
         "",
         "Bjontegaard delta rate (PCHIP over log10 rate, on the PSNR range both curves cover; negative = fewer "
-        "bits than the anchor for the same PSNR) for D1 and D2, and encode (enc) / decode (dec) time of the "
+        "bits than the anchor for the same PSNR) for D1 and D2"
+        + (" and, for textured sequences, Y, Cb and Cr, each against the total rate (geometry and texture)"
+           if _textured(results) else "")
+        + ", and encode (enc) / decode (dec) time of the "
         "variant as a percentage of the anchor's. Bold: the best BD-rate of the row when it beats the anchor; "
         "*best* names the variant needing the fewest bits.",
         "",
         bd_markdown(results, bd_rows(results)),
         "",
+    ]
+    for ref in results.get("baselines", []):
+        parts += [f"## BD-rate against {ref}", "",
+                  f"The same measures with {ref} as the reference (one of the experiment's baselines).", "",
+                  bd_markdown(results, bd_rows(results, ref), ref), ""]
+    parts += [
         "## How it was measured",
         "",
         "- **Distortion** (DESIGN.md section 3, the V-DMC common test conditions as in mmetric): both meshes are "
@@ -357,10 +402,10 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
         "per sequence in *Conditions* below.",
         "- **Sequence figure**: the mean over frames of the per-frame PSNR (not the PSNR of the mean MSE).",
         f"- **Rate**: every byte of the stream (dynmesh: header and all frame units; Draco: the sum of its "
-        f"per-frame buffers), as Mbit/s at {results['fps']:g} frames per second"
+        f"per-frame buffers), as Mbit/s at {_rates_fps(results)}"
         + (", texture included (geometry and texture rates apart in the tables); texture PSNR: colour sampled "
            "bilinearly at the same grid points and rounded to 8 bits as in mmetric, BT.709 YCbCr in [0, 1], peak 1, "
-           "symmetric; Y BD-rates are on the "
+           "symmetric; Y, Cb and Cr BD-rates are on the "
            "total rate." if _textured(results) else ". Geometry only."),
         "- **Draco** codes each frame as an independent mesh (DracoPy, positions quantized over the frame's own box); "
         "it reorders and merges vertices, and the harness measures exactly what Draco decodes, like any decoder "
@@ -372,9 +417,10 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
         "sequences in the average row. BD-rate average: arithmetic mean over sequences.",
     ]
     if taken:
-        parts.append("- **Points from files** (codec `points`, *Conditions* names the file): rate, D1/D2 and times "
-                     "as the file gives them, not measured here; the harness checks only the file's peak and bytes, "
-                     "where it has them, against the sequence's peak and frames. Their times were taken wherever the "
+        parts.append("- **Points from files** (codec `points`, *Conditions* names the file): rate, D1/D2, times "
+                     "and, where the file has them, Y/Cb/Cr and the geometry and texture rates, as the file gives "
+                     "them, not measured here; the harness checks only the file's peak and bytes, where it has "
+                     "them, against the sequence's peak, frames and frame rate. Their times were taken wherever the "
                      "points were measured, so time ratios against them are indicative only.")
     parts += [
         "",
@@ -386,12 +432,19 @@ def markdown(results: dict, images: dict[tuple[str, str], str], command: str | N
     ]
     for s in results["sequences"]:
         parts += ["", f"### {s['name']}", ""]
-        pics = [f"![{s['name']} {label}]({images[(s['name'], key)]})" for key, label in metrics_of(results)
+        pics = [f"![{s['name']} {label}]({images[(s['name'], key)]})" for key, label in metrics_of(results, s["name"])
                 if (s["name"], key) in images]
         if pics:
             parts += [" ".join(pics), ""]
         parts.append(rd_markdown(results, s["name"]))
     return "\n".join(parts) + "\n"
+
+
+def _rates_fps(results: dict) -> str:
+    """The frame rate of the rates, with the sequences that have their own after it."""
+    own = [f"{s['name']}: {_fps(results, s['name']):g}" for s in results["sequences"]
+           if _fps(results, s["name"]) != results["fps"]]
+    return f"{results['fps']:g} frames per second" + (f" ({', '.join(own)})" if own else "")
 
 
 def _machine() -> str:
@@ -406,7 +459,8 @@ def _machine() -> str:
 def write_report(results: dict, report_dir: str | os.PathLike, report_file: str = "results.md",
                  command: str | None = None) -> Path:
     """Writes the experiment's section of REPORT_DIR/REPORT_FILE and its plots in
-    REPORT_DIR/<report file stem>/<experiment>/ (one PNG per sequence and metric, referenced
+    REPORT_DIR/<report file stem>/<experiment>/ (one PNG per sequence and metric, D1, D2, and
+    Y, Cb, Cr for a textured sequence, each against the total rate; referenced
     relatively). Several experiments share a page: each owns the part between its markers,
     which a rerun replaces; the rest of the page is kept. Returns the page's path."""
     from ..api import write_bytes_atomic
@@ -416,7 +470,7 @@ def write_report(results: dict, report_dir: str | os.PathLike, report_file: str 
     img_dir = report_dir / Path(report_file).stem / results["experiment"]
     images = {}
     for s in results["sequences"]:
-        for key, label in metrics_of(results):
+        for key, label in metrics_of(results, s["name"]):
             png = plot_rd(results, s["name"], key, img_dir / f"rd_{s['name']}_{label.lower()}.png")
             images[(s["name"], key)] = png.relative_to(report_dir).as_posix()
     section = _demoted(markdown(results, images, command))
