@@ -552,6 +552,31 @@ def test_textured_runs_against_textured_points_and_a_baseline(tmp_path, count_en
         assert f"(results/tex/{png.name})" in page and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_textured_experiments_read_the_shared_textured_points():
+    for name in ("basketball_textured", "liam_textured"):
+        shared_sequence(name)
+    if not (SHARED_DATA.parent / "anchors" / "tm14_textured_anchor.csv").is_file():
+        pytest.skip("shared anchors not present")
+    folder = Path(__file__).resolve().parents[1] / "experiments"
+    exp = evaluate.load_experiment(folder / "textured_tm14.toml")
+    assert exp.anchor == "tm14-ai" and exp.baselines == ["dynmesh-ai", "inter-none"]
+    assert [v.name for v in exp.variants] == ["tm14-ai", "dynmesh", "dynmesh-ai", "inter-none"]
+    assert [(s.name, len(s.frames), s.fps) for s in exp.sequences] == [("basketball_textured", 3, 30),
+                                                                      ("liam_textured", 6, 6)]
+    points = exp.variant("tm14-ai").points  # liam's bytes match its Mbit/s at 6 fps only
+    for s in exp.sequences:
+        mine = [p for p in points if p["sequence"] == s.name]
+        assert [p["rate"] for p in mine] == ["r1", "r2", "r3", "r4", "r5"]
+        assert all({"y_psnr", "cb_psnr", "cr_psnr", "geometry_mbps", "texture_mbps"} <= set(p) for p in mine)
+    # The one knob: the geometry QP alone, texture options left to the encoder.
+    for v in exp.variants[1:]:
+        assert [r.options["qp"] for r in v.rates] == [36, 32, 28, 24, 20]
+        assert all(set(r.options) <= {"qp", "intra_period", "inter"} for r in v.rates)
+    assert len(evaluate.plan_runs(exp)) == 2 * 3 * 5
+    older = evaluate.load_experiment(folder / "textured.toml")  # still loads as it was
+    assert older.baselines == [] and [s.fps for s in older.sequences] == [30]
+
+
 def test_tm14_experiment_reads_the_shared_test_model_points():
     for name in ("basketball_player", "dancer", "mitch", "thomas"):
         shared_sequence(name)
