@@ -274,3 +274,11 @@ def test_texture_size_and_qp_follow_the_source_and_the_geometry_qp(textured_sequ
     assert opts["texture_qp"] == dynmesh.defaults.texture_qp_for(30)
     assert texture.resolve_options({"texture_qp": 40}, 30, textured_sequence[0])["texture_qp"] == 40
     assert [dynmesh.defaults.texture_qp_for(q) for q in (20, 28, 36)] == sorted(dynmesh.defaults.texture_qp_for(q) for q in (20, 28, 36))
+
+
+def test_the_encoder_reports_the_texture_options_it_chose_and_the_atlas_texels_used(tmp_path, textured_sequence):
+    result = api.encode_frames(textured_sequence)
+    assert result.texture_options["texture_size"] == 128
+    assert result.texture_options["texture_qp"] == dynmesh.defaults.texture_qp_for(api.DEFAULTS["qp"])
+    assert all(0 < f["texture_coverage"] < 1 for f in result.frames)
+    assert api.encode_frames(textured_sequence, texture=False).texture_options is None

@@ -40,6 +40,9 @@ class EncodeResult:
     reconstructions: list[Mesh] = field(default_factory=list)
     #: Bytes of the texture units (0 for an untextured stream); the rest is geometry.
     texture_bytes: int = 0
+    #: The texture options the stream was coded with, those left to the encoder chosen
+    #: (None for an untextured stream).
+    texture_options: dict | None = None
 
 
 def _as_mesh(frame) -> Mesh:
@@ -136,7 +139,7 @@ def encode_frames(
 
         groups = parallel.encoded_groups(meshes, (count, lo, hi), opts, texture_options if textured else None,
                                          keep_reconstructions, jobs, ray)
-        result = EncodeResult(b"")
+        result = EncodeResult(b"", texture_options=texture_options if textured else None)
         result.data = b"".join(parallel.stream_chunks(enc.header_bytes(), groups, result, on_frame))
         return result
     tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions) if textured else None
@@ -144,6 +147,7 @@ def encode_frames(
     if len(result.frames) != count:
         raise ValueError(f"{len(result.frames)} frames where {count} were announced")
     result.data = enc.header_bytes() + result.data
+    result.texture_options = texture_options if textured else None
     return result
 
 
@@ -209,6 +213,8 @@ def encode_units(enc: _core.Encoder, tex: _texture.TextureEncoder | None, meshes
             unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
             stats["type"] = FrameType(stats["type"])
             closed = tex and tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, _image_of(m))
+            if tex:
+                stats["texture_coverage"] = tex.coverage[-1]
         except ValueError as e:
             raise ValueError(f"frame {i}: {e}") from None
         _place_texture_unit(parts, closed)

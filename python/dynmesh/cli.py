@@ -121,7 +121,7 @@ def cmd_encode(a) -> dict:
     size = Path(a.output).stat().st_size
     frames = [{"frame": i, "input": str(p), **s} for i, (p, s) in enumerate(zip(paths, result.frames))]
     summary = {"output": str(a.output), "bytes": size, "texture_bytes": result.texture_bytes,
-               "frames": frames, "options": _encoder_options(a)}
+               "frames": frames, "options": {**_encoder_options(a), **(result.texture_options or {})}}
     if not a.json:
         print(_table(frames, [("frame", "frame", "d"), ("type", "type", "s"), ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
                               ("displacement_bytes", "disp B", "d"), ("base_faces", "base faces", "d"),
@@ -129,6 +129,11 @@ def cmd_encode(a) -> dict:
         of_texture = f" ({result.texture_bytes} of them texture)" if result.texture_bytes else ""
         print(f"wrote {a.output}: {size} bytes{of_texture}, {len(frames)} frames, "
               f"{8 * size / len(frames) * 30 / 1e6:.3f} Mbit/s at 30 fps")
+        if result.texture_options:
+            t = result.texture_options
+            used = sum(f["texture_coverage"] for f in frames) / len(frames)
+            print(f"texture: {t['texture_size']} x {t['texture_size']} atlas, {t['texture_codec']} at texture QP "
+                  f"{t['texture_qp']}, {100 * used:.0f} % of its texels used (mean over the frames)")
     return summary
 
 

@@ -283,6 +283,6 @@ def encode_to_file(path: str | os.PathLike, frames: Iterable, *, sequence: tuple
         first, frames = api._peek(frames)
         texture_options = texture.resolve_options(texture_options, opts["qp"], first if isinstance(first, Mesh) else read_again(first))
     groups = encoded_groups(frames, sequence, opts, texture_options if textured else None, False, jobs, ray)
-    result = api.EncodeResult(b"")
+    result = api.EncodeResult(b"", texture_options=texture_options if textured else None)
     _atomic_write(Path(path), stream_chunks(header, groups, result, on_frame))
     return result

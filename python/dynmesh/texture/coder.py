@@ -152,6 +152,9 @@ class TextureEncoder:
         self.keep_images = keep_images
         self.images: list[np.ndarray] = []
         self.uvs: list[tuple[np.ndarray, np.ndarray]] = []
+        #: Per frame, the share of the atlas's texels that the frame's surface covers (the
+        #: rest is padding, which the video codes at little cost).
+        self.coverage: list[float] = []
         self._group: _Group | None = None
         self._frame = 0
 
@@ -167,10 +170,11 @@ class TextureEncoder:
             uv, uv_faces = _core.subdivide_uv(uv, uv_faces, self.subdiv)
             self._group = _Group(self._frame, data, uv, uv_faces, base.faces)
         g = self._group
-        texture, _ = _core.transfer_texture(
+        texture, covered = _core.transfer_texture(
             reconstruction.positions, reconstruction.faces, g.uv, g.uv_faces,
             source.positions, source.faces, source.uvs, source.uv_faces, image, self.size, self.size)
         g.images.append(texture)
+        self.coverage.append(float(covered))
         self.uvs.append((g.uv, g.uv_faces))
         self._frame += 1
         return closed
