@@ -254,13 +254,21 @@ def test_every_inter_tool_gives_textured_frames_uvs_and_decodes_bit_for_bit(name
 
 
 def test_a_refreshed_frame_starts_a_texture_group_of_its_own():
+    # Weighed with its texture, this refresh loses to intra (both start a texture group);
+    # coded on geometry alone (a texture stage that estimates no costs) it is kept.
     name, frames, options = _through_every_inter_tool()[0]
-    result = api.encode_frames(frames, keep_reconstructions=True, texture_size=64, **options)
+    opts = {**api.DEFAULTS, **options}
+    enc = api._encoder(len(frames), *api.sequence_bounds(frames), opts)
+    tex = texture.TextureEncoder(opts["subdiv"], {"texture_size": 64, "texture_qp": 30}, keep_images=True)
+    result = api.encode_units(enc, tex, frames, 0, len(frames), True, None)
     assert [f["type"] for f in result.frames] == ["I", "P", "P"] and result.frames[1]["refreshed_faces"] > 0
+    data = enc.header_bytes() + result.data
     # Frame 1's base has faces frame 0's atlas has no UVs for: it carries an atlas of its
     # own, which frame 2 (moved from frame 1's base) shares.
-    assert [f["texture_bytes"] > 0 for f in api.info(result.data)["frames"]] == [True, True, False]
+    assert [f["texture_bytes"] > 0 for f in api.info(data)["frames"]] == [True, True, False]
     assert np.array_equal(result.reconstructions[2].uv_faces, result.reconstructions[1].uv_faces)
+    for r, d in zip(result.reconstructions, api.decode(data)):
+        assert np.array_equal(r.uvs, d.uvs) and np.array_equal(r.uv_faces, d.uv_faces) and np.array_equal(r.image, d.image)
 
 
 def test_texture_size_and_qp_follow_the_source_and_the_geometry_qp(textured_sequence):
@@ -282,3 +290,38 @@ def test_the_encoder_reports_the_texture_options_it_chose_and_the_atlas_texels_u
     assert result.texture_options["texture_qp"] == dynmesh.defaults.texture_qp_for(api.DEFAULTS["qp"])
     assert all(0 < f["texture_coverage"] < 1 for f in result.frames)
     assert api.encode_frames(textured_sequence, texture=False).texture_options is None
+
+
+def _frame_types(frames, cost) -> str:
+    lo, hi = api.sequence_bounds(frames)
+    enc = _core.Encoder(len(frames), lo.tolist(), hi.tolist(), dict(api.DEFAULTS))
+    types = []
+    for m in frames:
+        enc.set_texture_cost(cost)
+        types.append(enc.encode_frame(m.positions, m.faces)[1]["type"])
+    return "".join(types)
+
+
+def test_frame_decisions_weigh_what_a_texture_restart_costs():
+    frames = synth_sequence(frames=10, resolution=24)
+    geometry = _frame_types(frames, None)
+    assert "I" in geometry[1:], geometry  # merging blobs: some frames lose as predicted ones
+    assert _frame_types(frames, (0.0, 0.0)) == geometry
+    # An atlas and an intra video frame that cost far more than a predicted video frame
+    # make every frame that can be predicted a predicted one.
+    textured = _frame_types(frames, (100.0, 1e7))
+    assert textured.count("P") > geometry.count("P") and textured[0] == "I", (geometry, textured)
+    for bad in ((-1.0, 5.0), (float("nan"), 1.0)):
+        with pytest.raises(ValueError, match="texture costs"):
+            _core.Encoder(2, [0, 0, 0], [1, 1, 1], dict(api.DEFAULTS)).set_texture_cost(bad)
+
+
+def test_textured_streams_decide_with_texture_and_still_decode_bit_for_bit():
+    image = checker_image(seed=3)
+    frames = [with_spherical_uvs(m, image) for m in synth_sequence(frames=10, resolution=24)]
+    textured = api.encode_frames(frames, keep_reconstructions=True, texture_size=64)
+    geometry = api.encode_frames(frames, texture=False)
+    types = lambda r: "".join(f["type"] for f in r.frames)
+    assert types(textured).count("P") >= types(geometry).count("P"), (types(geometry), types(textured))
+    for r, d in zip(textured.reconstructions, api.decode(textured.data)):
+        assert np.array_equal(r.positions, d.positions) and np.array_equal(r.image, d.image)

@@ -5,6 +5,7 @@
 
 mod colour;
 mod decode_files;
+mod image;
 mod meshio;
 mod obj;
 mod options;
@@ -20,7 +21,7 @@ use pyo3::types::{PyBytes, PyDict};
 
 use dynmesh::stream::bitstream::{FrameType, SequenceHeader};
 use dynmesh::decoder;
-use dynmesh::encoder::{FrameStats, SequenceEncoder};
+use dynmesh::encoder::{FrameStats, SequenceEncoder, TextureCost};
 use dynmesh::error::DecodeError as CoreDecodeError;
 use dynmesh::geom::mesh::Mesh;
 use dynmesh::eval::metrics;
@@ -138,6 +139,17 @@ impl Encoder {
     /// intra period): its frames then get the units the sequential encoder gives them.
     fn start_group(&mut self, index: u32) -> PyResult<()> {
         self.inner.start_group(index).map_err(|e| PyValueError::new_err(e.0))
+    }
+
+    /// Makes the decisions of the following frames weigh the bytes their texture adds:
+    /// `continued` for a frame that keeps its texture group's atlas, `restarted` for one
+    /// that starts a group (None: geometry alone).
+    fn set_texture_cost(&mut self, cost: Option<(f64, f64)>) -> PyResult<()> {
+        if cost.is_some_and(|(c, r)| !(c.is_finite() && r.is_finite() && c >= 0.0 && r >= 0.0)) {
+            return Err(PyValueError::new_err("texture costs must be finite numbers of bytes, at least 0"));
+        }
+        self.inner.set_texture_cost(cost.map(|(continued, restarted)| TextureCost { continued, restarted }));
+        Ok(())
     }
 
     /// The serialized sequence header.
@@ -324,6 +336,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     transfer::register(m)?;
     meshio::register(m)?;
     decode_files::register(m)?;
+    image::register(m)?;
     m.add("DecodeError", m.py().get_type::<DecodeError>())?;
     m.add("MAX_REFERENCES", dynmesh::encoder::MAX_REFERENCES)?;
     Ok(())

@@ -142,7 +142,8 @@ def encode_frames(
         result = EncodeResult(b"", texture_options=texture_options if textured else None)
         result.data = b"".join(parallel.stream_chunks(enc.header_bytes(), groups, result, on_frame))
         return result
-    tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions) if textured else None
+    tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions,
+                                  estimate_costs=opts["intra_period"] > 1) if textured else None
     result = encode_units(enc, tex, meshes, 0, count, keep_reconstructions, on_frame)
     if len(result.frames) != count:
         raise ValueError(f"{len(result.frames)} frames where {count} were announced")
@@ -210,6 +211,8 @@ def encode_units(enc: _core.Encoder, tex: _texture.TextureEncoder | None, meshes
         if i >= count:
             raise ValueError(f"more than the {count} frames announced")
         try:
+            if tex:
+                enc.set_texture_cost(tex.cost())
             unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
             stats["type"] = FrameType(stats["type"])
             closed = tex and tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, _image_of(m))

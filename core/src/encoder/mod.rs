@@ -183,6 +183,21 @@ pub struct SequenceEncoder {
     references: Vec<Stored>,
     /// Payload bytes and estimated distortion of the last frame coded intra.
     last_intra: Option<(usize, f64)>,
+    /// What the frame's texture will cost, when the stream is textured ([`TextureCost`]).
+    texture_cost: Option<TextureCost>,
+}
+
+/// The bytes a textured frame's texture adds, which the frame type decides: a frame whose
+/// base keeps the previous frame's connectivity continues the texture group (its atlas,
+/// and a video frame predicted from the previous one); an intra frame, and a predicted one
+/// whose base changed (refreshed, or moved from an older reference), starts a new group
+/// (a new atlas, an intra video frame). The texture stage measures both as it goes
+/// ([`SequenceEncoder::set_texture_cost`]) so that the decision weighs them with the
+/// geometry's bytes: texture is most of a textured stream.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TextureCost {
+    pub continued: f64,
+    pub restarted: f64,
 }
 
 /// A coded frame kept as a possible reference.
@@ -199,7 +214,13 @@ impl SequenceEncoder {
         if !min.iter().chain(&max).all(|c| c.is_finite()) {
             return Err(InputError("bounding box must be finite".into()));
         }
-        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, references: Vec::new(), last_intra: None })
+        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, references: Vec::new(), last_intra: None, texture_cost: None })
+    }
+
+    /// Makes the decisions of the following frames weigh their texture's bytes too (None:
+    /// geometry alone, as for an untextured stream).
+    pub fn set_texture_cost(&mut self, cost: Option<TextureCost>) {
+        self.texture_cost = cost;
     }
 
     pub fn header(&self) -> &SequenceHeader {
@@ -507,19 +528,39 @@ impl SequenceEncoder {
             return Ok((i, 0));
         };
         if let Some((bytes, di)) = self.last_intra {
-            if self.rd_prefers(p.candidate.payload.len(), p.candidate.distortion, bytes, di) {
+            if self.rd_prefers(self.frame_bytes(&p), p.candidate.distortion, bytes + self.texture_bytes(true), di) {
                 return Ok((p, 0));
             }
         }
         let i = intra(self)?;
         self.last_intra = Some((i.candidate.payload.len(), i.candidate.distortion));
-        let bytes = |c: &Chosen| c.candidate.payload.len();
-        let p = match self.refreshed(&p, &i, input, target)? {
-            Some(r) if !self.rd_prefers(bytes(&p), p.candidate.distortion, bytes(&r), r.candidate.distortion) => r,
-            _ => p,
+        let prefers = |s: &Self, a: &Chosen, b: &Chosen| s.rd_prefers(s.frame_bytes(a), a.candidate.distortion, s.frame_bytes(b), b.candidate.distortion);
+        let rejected = |c: &Chosen| c.candidate.payload.len();
+        let (p, passed_over) = match self.refreshed(&p, &i, input, target)? {
+            Some(r) if !prefers(self, &p, &r) => (r, None),
+            r => (p, r),
         };
-        let (p_bytes, i_bytes) = (bytes(&p), bytes(&i));
-        Ok(if self.rd_prefers(p_bytes, p.candidate.distortion, i_bytes, i.candidate.distortion) { (p, i_bytes) } else { (i, p_bytes) })
+        if prefers(self, &p, &i) {
+            return Ok((p, rejected(&i)));
+        }
+        // A refreshed frame that lost to the plain predicted one may still beat intra: with
+        // texture both start a texture group, and then the refresh costs intra's texture too.
+        Ok(match passed_over {
+            Some(r) if prefers(self, &r, &i) => (r, rejected(&i)),
+            _ => (i, rejected(&p)),
+        })
+    }
+
+    /// The bytes of a candidate with what its texture will cost ([`TextureCost`]).
+    fn frame_bytes(&self, c: &Chosen) -> usize {
+        let previous = self.references.iter().find(|s| s.frame + 1 == self.frame);
+        let restarts = c.candidate.head.frame_type == FrameType::Intra || previous.is_none_or(|s| s.reference.state.faces != c.candidate.state.faces);
+        c.candidate.payload.len() + self.texture_bytes(restarts)
+    }
+
+    /// What the texture of a frame that continues (or restarts) its texture group costs.
+    fn texture_bytes(&self, restarts: bool) -> usize {
+        self.texture_cost.map_or(0, |t| (if restarts { t.restarted } else { t.continued }).max(0.0).round() as usize)
     }
 
     /// The predicted frame `p` with the regions its moved base fits worst refreshed from

@@ -134,6 +134,13 @@ class _Group:
     uv_faces: np.ndarray
     base_faces: np.ndarray
     images: list = field(default_factory=list)
+    intra_bytes: int | None = None  # its first frame coded alone
+    predicted_bytes: int | None = None  # what its second frame adds to the first
+
+
+#: A predicted video frame's bytes as a share of its group's intra frame, until the group's
+#: second frame measures it (liam_textured, texture QP 24-40: 0.2-0.4).
+PREDICTED_SHARE = 0.3
 
 
 class TextureEncoder:
@@ -143,7 +150,7 @@ class TextureEncoder:
     group that the frame closed, and ``finish`` the last one. ``keep_images`` keeps the
     decoded texture of every frame (``images``), which costs decoding each video once."""
 
-    def __init__(self, subdiv: int, options: dict, keep_images: bool = False):
+    def __init__(self, subdiv: int, options: dict, keep_images: bool = False, estimate_costs: bool = False):
         opts = check_options(options)
         if opts["texture_size"] is None or opts["texture_qp"] is None:
             raise ValueError("TextureEncoder needs a texture_size and texture_qp (resolve_options chooses them)")
@@ -157,6 +164,20 @@ class TextureEncoder:
         self.coverage: list[float] = []
         self._group: _Group | None = None
         self._frame = 0
+        self._estimate = estimate_costs
+
+    def cost(self) -> tuple[float, float] | None:
+        """(bytes, bytes): what the texture of the next frame adds when the frame continues
+        the current group, and when it starts a new one (an atlas and an intra video
+        frame), for the geometry encoder's decisions (``Encoder.set_texture_cost``); None
+        before a group has begun or without ``estimate_costs``. Measured on the group's
+        own first two frames, each group apart, so a parallel encode decides as a
+        sequential one does."""
+        g = self._group
+        if g is None or g.intra_bytes is None:
+            return None
+        continued = g.predicted_bytes if g.predicted_bytes is not None else PREDICTED_SHARE * g.intra_bytes
+        return float(continued), float(g.intra_bytes + len(g.atlas))
 
     def add(self, frame_type: FrameType, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> tuple[int, bytes] | None:
         closed = None
@@ -175,6 +196,12 @@ class TextureEncoder:
             source.positions, source.faces, source.uvs, source.uv_faces, image, self.size, self.size)
         g.images.append(texture)
         self.coverage.append(float(covered))
+        if self._estimate and len(g.images) <= 2:
+            coded = len(video.encode_video(g.images, self.codec, self.qp))
+            if len(g.images) == 1:
+                g.intra_bytes = coded
+            else:
+                g.predicted_bytes = max(0, coded - g.intra_bytes)
         self.uvs.append((g.uv, g.uv_faces))
         self._frame += 1
         return closed
