@@ -165,8 +165,21 @@ def _file_digest(path: str) -> str:
 _CORE_DIGEST = _file_digest(api._core.__file__)
 
 
+def _python_digest() -> str:
+    """Short hash of the package's Python sources outside ``eval/``: the texture stage and
+    the option defaults live there, so a change to them measures its runs again."""
+    root = Path(api.__file__).parent
+    h = hashlib.sha256()
+    for path in sorted(p for p in root.rglob("*.py") if "eval" not in p.relative_to(root).parts):
+        h.update(str(path.relative_to(root)).encode() + b"\0" + path.read_bytes())
+    return h.hexdigest()[:16]
+
+
+_PYTHON_DIGEST = _python_digest()
+
+
 def _core_digest() -> str:
-    return _CORE_DIGEST
+    return f"{_CORE_DIGEST} python {_PYTHON_DIGEST}"
 
 
 # ---------------------------------------------------------------- the experiment file
