@@ -573,7 +573,7 @@ def test_textured_experiments_read_the_shared_textured_points():
     for v in exp.variants[1:]:
         assert [r.options["qp"] for r in v.rates] == [36, 32, 28, 24, 20]
         assert all(set(r.options) <= {"qp", "intra_period", "inter"} for r in v.rates)
-    assert len(evaluate.plan_runs(exp)) == 2 * 3 * 5
+    assert len(evaluate.plan_runs(exp)) == 3 * 3 * 5
     older = evaluate.load_experiment(folder / "textured.toml")  # still loads as it was
     assert older.baselines == [] and [s.fps for s in older.sequences] == [30]
 
