@@ -206,7 +206,7 @@ fn ply_header(vertices: usize, faces: usize) -> String {
 
 /// `chunks` into a new temporary file beside `path`, synced, then renamed to `path`; the
 /// temporary file is removed on failure.
-fn write_atomically(path: &Path, chunks: &[Vec<u8>]) -> io::Result<()> {
+pub(crate) fn write_atomically(path: &Path, chunks: &[Vec<u8>]) -> io::Result<()> {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tag = RandomState::new().hash_one(path) as u32;
     let tmp = path.with_file_name(format!(".{name}.{}.{tag:08x}.tmp", std::process::id()));
@@ -225,13 +225,19 @@ fn write_atomically(path: &Path, chunks: &[Vec<u8>]) -> io::Result<()> {
 fn write_error(w: WriteFailure) -> PyErr {
     match w {
         WriteFailure::NonFinite(p) => PyValueError::new_err(format!("{}: cannot write a mesh with non-finite positions", p.display())),
-        WriteFailure::Io(p, e) => match e.raw_os_error() {
-            Some(errno) => {
-                let text = e.to_string();
-                let strerror = text.split(" (os error").next().unwrap_or(&text).to_string();
-                PyOSError::new_err((errno, strerror, p.display().to_string()))
-            }
-            None => PyOSError::new_err(format!("{}: {e}", p.display())),
-        },
+        WriteFailure::Io(p, e) => io_error(&p, e),
+    }
+}
+
+/// The OSError that Python's own file functions raise for `e` on `path`: errno, strerror
+/// and the target's name (never a temporary file's).
+pub(crate) fn io_error(path: &Path, e: io::Error) -> PyErr {
+    match e.raw_os_error() {
+        Some(errno) => {
+            let text = e.to_string();
+            let strerror = text.split(" (os error").next().unwrap_or(&text).to_string();
+            PyOSError::new_err((errno, strerror, path.display().to_string()))
+        }
+        None => PyOSError::new_err(format!("{}: {e}", path.display())),
     }
 }
