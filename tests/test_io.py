@@ -480,6 +480,108 @@ def test_mesh_errors_survive_pickling():
     assert isinstance(error, MeshError) and error.line == 3 and str(error) == "a.obj: line 3: bad number"
 
 
+# --------------------------------------------------------------------------- texture images
+
+
+def noisy_image(h: int = 37, w: int = 53, seed: int = 2) -> np.ndarray:
+    """RGB that is smooth in places and noisy in others (every row filter gets used)."""
+    rng = np.random.default_rng(seed)
+    ramp = (np.arange(w)[None, :, None] * 4 + np.arange(h)[:, None, None] * 3 + [0, 60, 120]) % 256
+    return np.where(rng.random((h, w, 1)) < 0.3, rng.integers(0, 256, (h, w, 3)), ramp).astype(np.uint8)
+
+
+def pillow_rgb(path) -> np.ndarray:
+    from PIL import Image
+
+    with Image.open(path) as im:
+        return np.asarray(im.convert("RGB"))
+
+
+def test_written_images_are_lossless_pngs_that_pillow_and_our_reader_read(tmp_path):
+    image = noisy_image()
+    mesh_io.write_image(tmp_path / "t.png", image)
+    assert (tmp_path / "t.png").read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
+    assert np.array_equal(pillow_rgb(tmp_path / "t.png"), image)
+    assert np.array_equal(mesh_io.read_image(tmp_path / "t.png"), image)
+    # Any array layout and a plain list of rows give the same file.
+    mesh_io.write_image(tmp_path / "f.png", np.asfortranarray(image))
+    mesh_io.write_image(tmp_path / "l.png", image.tolist())
+    assert (tmp_path / "f.png").read_bytes() == (tmp_path / "l.png").read_bytes() == (tmp_path / "t.png").read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["f.png", "l.png", "t.png"]  # no temporary file left
+
+
+def test_image_write_failures_name_the_file_and_leave_nothing(tmp_path):
+    target = tmp_path / "missing" / "t.png"
+    with pytest.raises(FileNotFoundError) as e:
+        mesh_io.write_image(target, noisy_image())
+    assert e.value.filename == str(target)
+    (tmp_path / "old.png").write_bytes(b"old")
+    with pytest.raises(ValueError, match="H, W, 3"):
+        mesh_io.write_image(tmp_path / "old.png", np.zeros((4, 4), np.uint8))
+    assert (tmp_path / "old.png").read_bytes() == b"old" and [p.name for p in tmp_path.iterdir()] == ["old.png"]
+
+
+@pytest.mark.parametrize("mode", ["RGB", "RGBA", "L", "LA", "P", "P+transparency", "1", "I;16", "JPEG"])
+def test_read_image_gives_what_pillow_gives(tmp_path, mode):
+    """8-bit PNGs are decoded by the core, the rest by Pillow: the pixels are Pillow's either way."""
+    from PIL import Image
+
+    rgb = Image.fromarray(noisy_image())
+    path = tmp_path / ("t.jpg" if mode == "JPEG" else "t.png")
+    if mode == "JPEG":
+        rgb.save(path, quality=90)
+    elif mode == "P+transparency":
+        rgb.quantize(37).save(path, transparency=3)
+    elif mode == "I;16":
+        Image.fromarray((np.asarray(rgb.convert("L")).astype(np.uint16) * 251)).save(path)
+    elif mode == "RGBA":
+        a = rgb.copy()
+        a.putalpha(Image.fromarray(noisy_image(seed=5)[..., 0]))
+        a.save(path)
+    elif mode == "P":
+        rgb.quantize(200).save(path)
+    else:
+        rgb.convert(mode).save(path)
+    got = mesh_io.read_image(path)
+    assert got.dtype == np.uint8 and got.flags.c_contiguous and got.flags.writeable
+    assert np.array_equal(got, pillow_rgb(path))
+
+
+def test_unreadable_images_are_mesh_errors_naming_the_file(tmp_path):
+    for name, data in [("bad.png", b"\x89PNG\r\n\x1a\nnot a png at all"), ("bad.jpg", b"neither"), ("empty.png", b"")]:
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(MeshError, match="cannot read texture image") as e:
+            mesh_io.read_image(tmp_path / name)
+        assert e.value.path == tmp_path / name
+    with pytest.raises(MeshError, match="No such file") as e:
+        mesh_io.read_image(tmp_path / "gone.png")
+    assert e.value.path == tmp_path / "gone.png"
+    # A PNG cut short: Pillow's verdict, as before the core read PNGs.
+    mesh_io.write_image(tmp_path / "cut.png", noisy_image())
+    data = (tmp_path / "cut.png").read_bytes()
+    (tmp_path / "cut.png").write_bytes(data[: len(data) // 2])
+    with pytest.raises(MeshError, match="cannot read texture image"):
+        mesh_io.read_image(tmp_path / "cut.png")
+
+
+def test_glb_embeds_the_texture_losslessly():
+    import io
+    import json
+    import struct
+
+    from dynmesh.io import glb_bytes
+
+    sphere = uv_sphere(6, 8)
+    image = noisy_image(16, 24)
+    mesh = Mesh(sphere.positions, sphere.faces, np.random.default_rng(3).random((sphere.vertex_count, 2)), image=image)
+    data = glb_bytes(mesh)
+    (n,) = struct.unpack_from("<I", data, 12)
+    doc, binary = json.loads(data[20:20 + n]), data[28 + n:]
+    view = doc["bufferViews"][doc["images"][0]["bufferView"]]
+    png = binary[view["byteOffset"]:view["byteOffset"] + view["byteLength"]]
+    assert np.array_equal(pillow_rgb(io.BytesIO(png)), image)
+
+
 # --------------------------------------------------------------------------- atomic writes
 
 
