@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -196,3 +197,74 @@ def test_bad_decode_options_fail_in_one_line(tmp_path, frames_dir, args, message
     extra = ["--hash"] if args and args[0] == "--lod" else []
     p = run("decode", stream, *extra, *args, check=False)
     assert p.returncode != 0 and message in p.stderr and "Traceback" not in p.stderr, p.stderr
+
+
+# --------------------------------------------------------------------------- textured decode
+
+TEXTURED = Path(__file__).resolve().parent / "vectors" / "textured_mixed.dmsh"
+
+
+def test_textured_decode_writes_what_write_mesh_writes(tmp_path):
+    """The writer thread changes when the files are written, not what they hold: OBJ and MTL
+    byte for byte write_mesh's, the PNG the decoded image exactly, as Pillow reads it."""
+    from PIL import Image
+
+    from dynmesh import api
+
+    out, ref = tmp_path / "out", tmp_path / "ref"
+    run("decode", TEXTURED, "-o", out, "-q")
+    ref.mkdir()
+    frames = list(api.decode(TEXTURED.read_bytes()))
+    for i, mesh in enumerate(frames):
+        write_mesh(ref / f"frame_{i:04d}.obj", mesh)
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(p.name for p in ref.iterdir()) and len(names) == 3 * len(frames)
+    for name in names:
+        assert (out / name).read_bytes() == (ref / name).read_bytes(), name
+    for i, mesh in enumerate(frames):
+        with Image.open(out / f"frame_{i:04d}.png") as im:
+            assert im.format == "PNG" and np.array_equal(np.asarray(im.convert("RGB")), mesh.image)
+
+
+def test_a_failed_frame_write_fails_the_decode_and_leaves_nothing(tmp_path, monkeypatch, capsys):
+    from dynmesh import cli
+
+    real_write, written = cli._write_frame, []
+
+    def write_or_fail(path, mesh):
+        if path.name == "frame_0001.obj":
+            raise OSError(28, "No space left on device", str(path))
+        written.append(real_write(path, mesh))
+
+    monkeypatch.setattr(cli, "_write_frame", write_or_fail)
+    out = tmp_path / "out"
+    assert cli.main(["decode", str(TEXTURED), "-o", str(out), "-q"]) == 1
+    assert "No space left on device" in capsys.readouterr().err
+    assert written and list(tmp_path.iterdir()) == []  # neither the output nor the staged directory
+
+
+def test_a_decode_that_fails_while_frames_are_written_leaves_nothing(tmp_path, monkeypatch, capsys):
+    """The writer is stopped and waited for before the staged directory is removed."""
+    import time
+
+    from dynmesh import cli
+
+    real_write, real_refuse = cli._write_frame, cli.refuse_inputs
+    checked = []
+
+    def slow_write(path, mesh):
+        time.sleep(0.2)
+        return real_write(path, mesh)
+
+    def refuse_the_second(output, inputs, *args):
+        checked.append(output)
+        if len(checked) == 3:  # the output directory, then each frame's file
+            raise ValueError(f"refusing to write {output}")
+        return real_refuse(output, inputs, *args)
+
+    monkeypatch.setattr(cli, "_write_frame", slow_write)
+    monkeypatch.setattr(cli, "refuse_inputs", refuse_the_second)
+    assert cli.main(["decode", str(TEXTURED), "-o", str(tmp_path / "out"), "-q"]) == 1
+    assert "refusing to write" in capsys.readouterr().err
+    time.sleep(0.5)  # a writer left running would write its frames now
+    assert list(tmp_path.iterdir()) == []

@@ -158,8 +158,13 @@ def cmd_decode(a) -> dict:
     by_core = a.format in ("obj", "ply") and not _textured(stream)
     written, damaged, hashes = [], [], []
     start = time.perf_counter()
-    with _staged_or_none(a.output) as out, _progress(n, "decoding", a.quiet or (a.hash and not a.json)) as bar:
-        frames = _decoded_by_core(data, a, out, bar) if by_core else _decoded_by_api(data, a, out, bar)
+    with contextlib.ExitStack() as stack:
+        out = stack.enter_context(_staged_or_none(a.output))
+        bar = stack.enter_context(_progress(n, "decoding", a.quiet or (a.hash and not a.json)))
+        # Closed first on an error, so that no frame is still being written as the staged
+        # directory is removed.
+        frames = stack.enter_context(contextlib.closing(
+            _decoded_by_core(data, a, out, bar) if by_core else _decoded_by_api(data, a, out, bar)))
         for i, digest, failure in frames:
             if failure is not None:
                 if not a.skip_damaged:
@@ -220,21 +225,73 @@ def _decoded_by_core(data: bytes, a, out, bar):
 
 
 def _decoded_by_api(data: bytes, a, out, bar):
-    """As ``_decoded_by_core``, through ``dynmesh.api`` (textured frames, glTF), each frame
-    written into ``out`` before it is yielded."""
+    """As ``_decoded_by_core``, through ``dynmesh.api`` (textured frames, glTF). Each frame
+    is handed to a writer thread, which writes it into ``out`` while the next frame is
+    decoded; an error writing a frame is raised by the time the generator ends, which is
+    when every file is written."""
     from . import api
-    from .conformance import frame_hash
+
+    frame_hash = None
+    if a.hash:
+        from .conformance import frame_hash
 
     frames = api.decode_each(data, lod=a.lod) if a.skip_damaged else enumerate(api.decode(data, lod=a.lod))
-    for i, mesh in frames:
-        bar.update()
-        if isinstance(mesh, api.DecodeError):
-            yield i, None, (mesh.offset, str(mesh))
-            continue
-        digest = frame_hash(mesh) if a.hash else None
-        if out is not None:
-            _write_frame(out.path(_frame_name(i, a.format)), mesh)
-        yield i, digest, None
+    with _FrameWriter() as writer:
+        for i, mesh in frames:
+            bar.update()
+            if isinstance(mesh, api.DecodeError):
+                yield i, None, (mesh.offset, str(mesh))
+                continue
+            digest = frame_hash(mesh) if frame_hash is not None else None
+            if out is not None:
+                writer.write(out.path(_frame_name(i, a.format)), mesh)
+            yield i, digest, None
+
+
+class _FrameWriter:
+    """Writes decoded frames (``_write_frame``) on one thread behind the decoding, at most
+    ``ahead`` frames behind it. The formatting, PNG encoding and syncing it runs are done by
+    the core with the GIL released, so on two cores a textured frame's files are written
+    while the next frame's geometry and texture video are decoded.
+
+    Leaving the ``with`` block waits for the frames handed in and raises the first error
+    one of them met (or, when the block is left by an exception, only waits: nothing is
+    left writing into a directory its caller is about to remove)."""
+
+    def __init__(self, ahead: int = 2):
+        import queue
+        import threading
+
+        self._jobs = queue.Queue(maxsize=ahead)
+        self._error: BaseException | None = None
+        self._dropping = False  # set when the caller failed: the queued frames are not written
+        self._thread = threading.Thread(target=self._run, name="dynmesh-writer", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while (job := self._jobs.get()) is not None:
+            if self._error is None and not self._dropping:
+                try:
+                    _write_frame(*job)
+                except BaseException as e:  # raised in the decoding thread
+                    self._error = e
+
+    def write(self, path: Path, mesh) -> None:
+        """Queues ``mesh`` for ``path`` (waits while ``ahead`` frames are queued); raises a
+        previous frame's error at once."""
+        if self._error is not None:
+            raise self._error
+        self._jobs.put((path, mesh))
+
+    def __enter__(self) -> _FrameWriter:
+        return self
+
+    def __exit__(self, kind, value, tb) -> None:
+        self._dropping = kind is not None
+        self._jobs.put(None)
+        self._thread.join()
+        if kind is None and self._error is not None:
+            raise self._error
 
 
 def _staged_or_none(output):
