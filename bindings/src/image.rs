@@ -82,11 +82,10 @@ fn encode_png<'py>(py: Python<'py>, image: PyReadonlyArray3<'py, u8>) -> PyResul
 #[pyfunction]
 fn write_png(py: Python<'_>, path: PathBuf, image: PyReadonlyArray3<'_, u8>) -> PyResult<()> {
     let (w, h, rgb) = rgb_rows(&image)?;
-    let written = py.allow_threads(|| -> PyResult<()> {
+    py.allow_threads(|| {
         let bytes = png_bytes(w, h, &rgb).map_err(encoding_error)?;
         write_atomically(&path, &[bytes]).map_err(|e| io_error(&path, e))
-    });
-    written
+    })
 }
 
 /// The (H, W, 3) uint8 RGB pixels of a PNG file's bytes, rows from the top, or None when
