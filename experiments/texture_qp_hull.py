@@ -7,7 +7,7 @@ against the MPEG test model's all-intra textured rows (``shared/anchors``). The 
 a geometry QP is coded once; each texture QP codes the same transferred images again, so a
 pair costs a video encode and a metric, not a whole encode.
 
-    python experiments/texture_qp_hull.py [--sequences liam_textured basketball_textured] [--codec hevc]
+    python experiments/texture_qp_hull.py [--sequences liam_textured basketball_textured] [--codec av1]
 
 Prints the pairs and the mappings ranked by the worse of their D1 and Y BD-rates (mean over
 the sequences), and writes all of it as JSON to ``docs/results/texture_qp_hull.json``;
@@ -38,7 +38,7 @@ OUT = ROOT / "docs" / "results" / "texture_qp_hull.json"
 #: (frames, fps, peak) of each sequence as the test model's rows were measured.
 SEQUENCES = {"basketball_textured": (3, 30, 1876.07788), "liam_textured": (6, 6, 1770.15149)}
 GEOMETRY_QPS = (20, 24, 28, 32, 36)
-TEXTURE_QPS = tuple(range(18, 47, 2))
+TEXTURE_QPS = tuple(range(20, 47, 2))
 
 
 def anchor_points(seq: str) -> list[dict]:
@@ -135,7 +135,7 @@ def best(scores: list[dict]) -> list[dict]:
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--sequences", nargs="+", default=list(SEQUENCES))
-    ap.add_argument("--codec", default="hevc")
+    ap.add_argument("--codec", default=texture.TEXTURE_DEFAULTS["texture_codec"])
     ap.add_argument("--rescore", action="store_true", help="score the pairs of the last run again, without coding")
     a = ap.parse_args()
     if a.rescore:

@@ -627,7 +627,8 @@ def parser() -> argparse.ArgumentParser:
                    help="texture video QP, 0-51, on HEVC's scale whatever the codec (default: follows --qp, "
                         f"{texture_qp_rule()})")
     p.add_argument("--texture-codec", choices=list(TEXTURE_CODECS), default=t["texture_codec"],
-                   help=f"texture video codec: HEVC (libx265) or AV1 (libsvtav1), 10-bit 4:2:0 (default {t['texture_codec']})")
+                   help=f"texture video codec, 10-bit 4:2:0: AV1 (libsvtav1; browsers and `dynmesh play` decode it) or "
+                        f"HEVC (libx265; browsers do not) (default {t['texture_codec']})")
     _parallel_args(p, "groups of --intra-period frames encoded", jobs="auto")
     _common(p)
     p.set_defaults(run=cmd_encode)

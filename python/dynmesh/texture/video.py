@@ -115,7 +115,7 @@ def _container(codec: str) -> str:
 def _options(codec: str, qp: float, frames: int, preset) -> dict:
     """The FFmpeg encoder options for one group's video."""
     if codec == "hevc":
-        return {"preset": str(preset or HEVC_PRESET), "x265-params": f"qp={qp}:bframes=0:log-level=error"}
+        return {"preset": str(preset or HEVC_PRESET), "x265-params": f"qp={qp}:bframes=0:info=0:log-level=error"}
     params = {**AV1_PARAMS, "keyint": frames + 1, "crf": f"{av1_crf(qp):g}"}
     return {"preset": str(AV1_PRESET if preset is None else preset),
             "svtav1-params": ":".join(f"{k}={v}" for k, v in params.items())}
