@@ -38,12 +38,13 @@ def stream(tmp_path_factory) -> Path:
     return path
 
 
-def textured_stream(tmp_path: Path, codec: str) -> Path:
+def textured_stream(tmp_path: Path, codec: str | None) -> Path:
     """Six frames of the synthetic sequence with spherical UVs and a texture, coded with
-    ``codec`` (av1 or hevc)."""
+    ``codec`` (av1 or hevc; None: every texture option at its default)."""
     path = tmp_path / f"textured_{codec}.dmsh"
     frames = _textured(synth_sequence(frames=40, resolution=20)[:6])
-    path.write_bytes(api.encode(frames, qp=30, texture_size=128, texture_codec=codec, texture_qp=30))
+    options = {} if codec is None else dict(texture_size=128, texture_codec=codec, texture_qp=30)
+    path.write_bytes(api.encode(frames, qp=30, **options))
     return path
 
 
@@ -141,8 +142,9 @@ def test_the_page_plays_the_stream_in_headless_chromium(stream, tmp_path):
     assert result["playSeconds"] < 5
 
 
-def test_an_av1_textured_stream_plays_with_its_texture(tmp_path):
-    result = in_browser(textured_stream(tmp_path, "av1"), tmp_path)
+@pytest.mark.parametrize("codec", ["av1", None], ids=["av1", "defaults"])
+def test_an_av1_textured_stream_plays_with_its_texture(tmp_path, codec):
+    result = in_browser(textured_stream(tmp_path, codec), tmp_path)
     assert result["final"]["textured"] and result["final"]["textureNote"] == "AV1 texture", result["final"]
     assert result["console"] == []
     for name in ("first", "last"):
