@@ -1,13 +1,21 @@
-//! Closest points of a triangle surface for a walk of queries that lie close together.
+//! Closest points of a triangle surface for a walk of queries that lie close to it.
 //!
 //! [`Bvh::closest_point`] answers one query from the root of the hierarchy. Texture transfer
-//! asks millions, each next to the one before; a `Finder` keeps a shortlist of the source
-//! triangles near the last queries, with distance bounds (`Bound`) that prove which one is
-//! closest, and renews it from a uniform grid of the triangles (`FaceGrid`: the query for
-//! all triangles near a ball, which the Bvh does not offer). Its answers are exactly the
-//! Bvh's, tie-breaking included, with the barycentrics of the closest point.
-
-use std::ops::Range;
+//! asks millions, each next to the one before and, the reconstruction being close to the input,
+//! mostly within a small fraction of a triangle of the source surface. A `Finder` measures the
+//! triangle of its last answer first: the distance `d` to it bounds the search to the cube of
+//! half-side `d` around the query, which mostly lies within one cell of a uniform grid of the
+//! triangles (`FaceGrid`). Each entry of a cell carries a mask of the 4 x 4 x 4 sub-cells that its
+//! triangle's bounding box overlaps, so that only the triangles near that cube are bounded
+//! (`Bound`), and only those that may be as near are measured. Where the cube spans more cells
+//! (the walk jumped to another part of the surface, or the source is far), the search visits
+//! ever larger boxes of cells around the query; a query too far from the source for that is
+//! left to [`Source::closest_far`], which asks a Bvh of the whole source.
+//!
+//! The answers are exactly the Bvh's, tie-breaking included (the nearest triangle, and the
+//! lowest index among equally near ones), with the barycentrics of the closest point: the same
+//! distance code runs over every triangle that could win, and the filters before it only skip
+//! triangles that are provably farther.
 
 use rayon::prelude::*;
 
@@ -24,62 +32,57 @@ pub(crate) struct Hit {
 }
 
 /// The source surface, prepared for closest-point queries.
-pub(crate) struct Source {
-    bvh: Bvh,
+pub(crate) struct Source<'a> {
+    mesh: &'a Mesh,
     grid: FaceGrid,
-    /// Corners of each face.
-    tris: Vec<[[f64; 3]; 3]>,
+    /// Each face, ready for measuring.
+    tris: Vec<Triangle>,
     bounds: Vec<Bound>,
-    /// Bounding sphere (centre, radius) of each face: a yet cheaper first test.
-    spheres: Vec<[f64; 4]>,
-    /// Mean edge length.
-    pub edge: f64,
     /// Absolute slack on distance comparisons, against rounding (whose error grows with the
     /// coordinates' magnitude).
     eps: f64,
 }
 
-impl Source {
+impl<'a> Source<'a> {
     /// Prepares `mesh` for queries from points whose coordinates are at most `magnitude`
     /// (together with the mesh's own, this sets the slack against rounding).
-    pub fn new(mesh: &Mesh, magnitude: f64) -> Self {
-        let tris: Vec<[[f64; 3]; 3]> = mesh.faces.par_iter().map(|f| f.map(|v| mesh.positions[v as usize])).collect();
-        let bounds = tris.par_iter().map(|&t| Bound::new(t)).collect();
-        let spheres = tris.par_iter().map(|&t| bounding_sphere(t)).collect();
-        let edge = mean_edge(&tris);
-        let (bvh, grid) = rayon::join(|| Bvh::new(&mesh.positions, &mesh.faces), || FaceGrid::new(&tris, edge));
+    pub fn new(mesh: &'a Mesh, magnitude: f64) -> Self {
+        let corners: Vec<[[f64; 3]; 3]> = mesh.faces.par_iter().map(|f| f.map(|v| mesh.positions[v as usize])).collect();
+        let bounds = corners.par_iter().map(|&t| Bound::new(t)).collect();
+        let tris = corners.par_iter().map(|&t| Triangle::new(t)).collect();
+        let grid = FaceGrid::new(&corners, mean_edge(&corners));
         let eps = 1e-12 * (1.0 + magnitude.max(largest_coordinate(&mesh.positions)));
-        Self { bvh, grid, tris, bounds, spheres, edge, eps }
+        Self { mesh, grid, tris, bounds, eps }
     }
 
     /// The closest point to `q` of source face `face`.
     fn hit(&self, q: [f64; 3], face: u32) -> Hit {
-        let (_, dist2, bary) = closest_on_triangle(q, self.tris[face as usize]);
+        let (dist2, bary) = self.tris[face as usize].closest(q);
         Hit { triangle: face, bary, dist2 }
     }
 
-    /// A lower bound on the distance from `q` to source face `face`.
-    fn lower(&self, face: u32, q: [f64; 3]) -> f64 {
-        self.bounds[face as usize].lower(q)
+    /// Whether face `face` must be measured against `best` for query `q`: it may be as near
+    /// (bounds within the slack); `best.triangle` itself need not be.
+    fn may_beat(&self, face: u32, q: [f64; 3], best: &Hit, reach: f64) -> bool {
+        face != best.triangle && !self.bounds[face as usize].beyond(q, reach)
     }
 
-    /// Replaces `out` with the faces that may lie within `reach` of `c`, nearest first (all
-    /// those that do are there); `false` if there are too many.
-    fn shortlist(&self, seen: &mut Seen, c: [f64; 3], reach: f64, out: &mut Vec<Entry>) -> bool {
-        out.clear();
-        let complete = self.grid.visit(c, reach, seen, |f| {
-            let [x, y, z, r] = self.spheres[f as usize];
-            let d = sub(c, [x, y, z]);
-            if dot(d, d) <= (reach + r).powi(2) {
-                let (lower, plane) = self.bounds[f as usize].farthest(c);
-                if lower <= reach {
-                    out.push(Entry { lower, face: f, plane });
-                }
-            }
-            out.len() <= MAX_SHORTLIST
-        });
-        out.sort_unstable_by(|a, b| a.lower.total_cmp(&b.lower).then(a.face.cmp(&b.face)));
-        complete
+    /// `best`, or the hit of `face` if that is nearer, or as near with a lower index.
+    fn better(&self, q: [f64; 3], face: u32, best: &mut Hit) {
+        let hit = self.hit(q, face);
+        if hit.dist2 < best.dist2 || (hit.dist2 == best.dist2 && face < best.triangle) {
+            *best = hit;
+        }
+    }
+
+    /// The closest points of `queries` (those a [`Finder`] left, in any number), from a Bvh of
+    /// the whole source built for them; `None` for an empty source.
+    pub fn closest_far(&self, queries: &[[f64; 3]]) -> Vec<Option<Hit>> {
+        if queries.is_empty() {
+            return Vec::new();
+        }
+        let bvh = Bvh::new(&self.mesh.positions, &self.mesh.faces);
+        queries.par_iter().map(|&q| Some(self.hit(q, bvh.closest_point(q)?.triangle))).collect()
     }
 }
 
@@ -87,152 +90,208 @@ pub(crate) fn largest_coordinate(points: &[[f64; 3]]) -> f64 {
     points.par_iter().map(|p| p[0].abs().max(p[1].abs()).max(p[2].abs())).reduce(|| 0.0, f64::max)
 }
 
-fn bounding_sphere(t: [[f64; 3]; 3]) -> [f64; 4] {
-    let c = scale(add(add(t[0], t[1]), t[2]), 1.0 / 3.0);
-    let r = t.iter().map(|&p| norm(sub(p, c))).fold(0.0, f64::max);
-    [c[0], c[1], c[2], r]
-}
-
 /// Finds the closest source points of queries one after another, exploiting that consecutive
-/// queries lie close together (texels of a band, in transfer).
-///
-/// It keeps a shortlist: every source triangle within `radius` of a `centre`, with a lower
-/// bound on its distance from the centre, nearest first. For a query `q` at `delta` from the
-/// centre, a triangle as close to `q` as the best one found (at `d`) lies within `delta + d`
-/// of the centre; so if that is within the radius, the shortlist holds every candidate, and
-/// the scan may stop at the first bound beyond `delta + d`. Otherwise the shortlist is made
-/// anew around `q`, from the source grid. The answers are those of [`Bvh::closest_point`] on
-/// the whole source, tie-breaking included: the same distance code runs over every triangle
-/// that could win.
+/// queries lie close together and close to the source (texels of a band, in transfer).
 pub(crate) struct Finder<'a> {
-    source: &'a Source,
-    span: f64,
-    /// Ascending by lower bound.
-    shortlist: Vec<Entry>,
-    centre: [f64; 3],
-    radius: f64,
-    /// The source face of the last answer, tried first.
+    source: &'a Source<'a>,
+    /// The source face of the last answer, measured first.
     hint: Option<u32>,
-    /// Queries left to send straight to the whole source's Bvh, after listing failed.
+    /// Queries left to give up at once, after one was too far: the next ones mostly are too.
     cooldown: u32,
-    seen: Seen,
 }
 
-/// Queries sent straight to the Bvh after a failed listing, before listing is tried again:
-/// where the queries are far from the source, every one would otherwise list in vain.
+/// Queries given up after one too far for the grid, before the grid is tried again.
 const COOLDOWN: u32 = 64;
 
+/// Grid cells the cube around a query may span for the masked search; beyond, the cube is far
+/// larger than the sub-cells and the masks would not pay.
+const MAX_QUERY_CELLS: usize = 8;
+/// Grid cells the widening search may visit before it gives a query up to the Bvh: a query
+/// this far (a few triangles) from the source is rare and then costs less there.
+const MAX_SEARCH_CELLS: usize = 512;
+
 impl<'a> Finder<'a> {
-    pub fn new(source: &'a Source, span: f64) -> Self {
-        let (shortlist, hint, seen) = (Vec::new(), None, Seen::new(source.tris.len()));
-        let (centre, radius, cooldown) = ([0.0; 3], f64::NEG_INFINITY, 0);
-        Self { source, span, shortlist, centre, radius, hint, cooldown, seen }
+    pub fn new(source: &'a Source<'a>) -> Self {
+        Self { source, hint: None, cooldown: 0 }
     }
 
-    /// The closest point of the source to `q`; `None` only for an empty source.
+    /// The closest point of the source to `q`, or `None` if `q` is too far from the source
+    /// for the grid: [`Source::closest_far`] then answers it (or an empty source).
     pub fn closest(&mut self, q: [f64; 3]) -> Option<Hit> {
-        if self.cooldown == 0 {
-            let (hit, certain) = self.scan(q);
-            if certain {
-                return hit;
-            }
-            let upper = match hit {
-                Some(h) => h.dist2.sqrt(),
-                None => self.source.bvh.closest_point(q)?.dist2.sqrt(),
-            };
-            if self.renew(q, upper) {
-                return self.scan(q).0;
-            }
-            self.cooldown = COOLDOWN;
+        if self.cooldown > 0 {
+            self.cooldown -= 1;
+            return None;
         }
-        self.cooldown -= 1;
-        let hit = self.source.hit(q, self.source.bvh.closest_point(q)?.triangle);
-        self.hint = Some(hit.triangle);
-        Some(hit)
+        let (source, grid) = (self.source, &self.source.grid);
+        let start = self.hint.map(|t| source.hit(q, t));
+        // Every triangle that may beat the last answer meets the cube of half-side `limit`:
+        // when that cube spans few cells, one masked search settles the query.
+        let limit = start.map_or(f64::INFINITY, |b| b.dist2.sqrt() + source.eps);
+        let cube = grid.cube(q, limit);
+        let found = match start {
+            Some(start) if cells(&cube) <= MAX_QUERY_CELLS => self.masked(q, start, &cube),
+            _ => match self.widening(q, start, limit) {
+                Some(hit) => hit,
+                None => {
+                    self.cooldown = COOLDOWN;
+                    return None;
+                }
+            },
+        };
+        self.hint = Some(found.triangle);
+        Some(found)
     }
 
-    /// The best of the shortlist for `q`, and whether it is sure to be the best of all. The
-    /// last answer is tried first: the next query mostly has the same, and its distance then
-    /// rules out most other triangles of the list by their bounds alone.
-    fn scan(&mut self, q: [f64; 3]) -> (Option<Hit>, bool) {
-        let (source, eps) = (self.source, self.source.eps);
-        let delta = norm(sub(q, self.centre));
-        let mut best: Option<Hit> = self.hint.map(|h| source.hit(q, h));
-        let mut best_dist = best.map_or(f64::INFINITY, |b| b.dist2.sqrt());
-        for e in &self.shortlist {
-            if e.lower - delta > best_dist + eps {
-                break;
+    /// The best of `best` and the triangles whose boxes meet the sub-cells `cube` around `q`:
+    /// the closest point if it lies in that cube.
+    fn masked(&self, q: [f64; 3], mut best: Hit, cube: &Span) -> Hit {
+        let source = self.source;
+        let mut reach = best.dist2.sqrt() + source.eps;
+        source.grid.for_entries(cube, |faces, masks, mask| {
+            for (&f, &m) in faces.iter().zip(masks) {
+                if m & mask != 0 && source.may_beat(f, q, &best, reach) {
+                    source.better(q, f, &mut best);
+                    reach = best.dist2.sqrt() + source.eps;
+                }
             }
-            let f = e.face;
-            let beyond = |d: f64| d > best_dist + eps;
-            if Some(f) == self.hint || beyond(plane_side(e.plane, q)) || beyond(source.lower(f, q)) {
-                continue;
-            }
-            let hit = source.hit(q, f);
-            if best.map_or(true, |b| hit.dist2 < b.dist2 || (hit.dist2 == b.dist2 && f < b.triangle)) {
-                best = Some(hit);
-                best_dist = hit.dist2.sqrt();
-            }
-        }
-        self.hint = best.map(|b| b.triangle);
-        (best, !self.shortlist.is_empty() && delta + best_dist <= self.radius - eps)
+        });
+        best
     }
 
-    /// Lists the triangles within `upper + span` of `q`, `upper` being the distance from `q`
-    /// to some source triangle (so that one at least is listed). Where the source is dense,
-    /// lists less far; `false` if even that is too many.
-    fn renew(&mut self, q: [f64; 3], upper: f64) -> bool {
-        for span in [self.span, self.span / 8.0] {
-            let radius = upper + span;
-            let eps = self.source.eps;
-            if self.source.shortlist(&mut self.seen, q, radius + eps, &mut self.shortlist) {
-                (self.centre, self.radius) = (q, radius);
-                return true;
+    /// The first triangle whose box meets the sub-cells `cube`: a start for `masked`.
+    fn first(&self, q: [f64; 3], cube: &Span) -> Option<Hit> {
+        let mut first = None;
+        self.source.grid.for_entries(cube, |faces, masks, mask| {
+            if first.is_none() {
+                first = faces.iter().zip(masks).find(|&(_, &m)| m & mask != 0).map(|(&f, _)| f);
+            }
+        });
+        first.map(|f| self.source.hit(q, f))
+    }
+
+    /// The closest point by searches of ever larger cubes around `q`, from a sub-cell up to
+    /// `limit` (`start`'s distance): it ends when the best found lies within the cube
+    /// searched, so that every triangle as near met it. The first cube is searched with the
+    /// masks; each later one visits the cells that no unmasked search visited before, measuring
+    /// against the best so far (which only improves, so what it skipped stays beaten). `None`
+    /// if the cube grows beyond `MAX_SEARCH_CELLS` cells first.
+    fn widening(&self, q: [f64; 3], start: Option<Hit>, limit: f64) -> Option<Hit> {
+        let (source, grid) = (self.source, &self.source.grid);
+        let done = |best: &Option<Hit>, half: f64| best.is_some_and(|b| b.dist2.sqrt() + source.eps <= half);
+        let half = grid.fine.min(limit);
+        let cube = grid.cube(q, half);
+        let mut best = start.or_else(|| self.first(q, &cube)).map(|b| self.masked(q, b, &cube));
+        if half >= limit || done(&best, half) {
+            return best;
+        }
+        let mut seen: Option<Span> = None;
+        let mut side = 2.0 * half;
+        loop {
+            let half = side.min(limit);
+            side *= 2.0;
+            let cube = grid.cube(q, half);
+            if cells(&cube) > MAX_SEARCH_CELLS {
+                return None;
+            }
+            let span = cube.map(|[a, b]| [a / SUB, b / SUB]);
+            for z in span[2][0]..=span[2][1] {
+                for y in span[1][0]..=span[1][1] {
+                    for x in span[0][0]..=span[0][1] {
+                        let old = seen.is_some_and(|s| [x, y, z].iter().zip(&s).all(|(&c, r)| r[0] <= c && c <= r[1]));
+                        if old {
+                            continue;
+                        }
+                        for &f in grid.entries(grid.cell_index(x, y, z)) {
+                            match &mut best {
+                                Some(b) => {
+                                    let reach = b.dist2.sqrt() + source.eps;
+                                    if source.may_beat(f, q, b, reach) {
+                                        source.better(q, f, b);
+                                    }
+                                }
+                                None => best = Some(source.hit(q, f)),
+                            }
+                        }
+                    }
+                }
+            }
+            seen = Some(span);
+            let whole = (0..3).all(|k| cube[k] == [0, grid.last[k]]);
+            if half >= limit || whole || done(&best, half) {
+                return best;
             }
         }
-        self.radius = f64::NEG_INFINITY;
-        false
     }
 }
 
-/// A triangle of a `Finder`'s shortlist.
-struct Entry {
-    /// A lower bound on its distance from the shortlist's centre.
-    lower: f64,
-    face: u32,
-    /// The plane of its `Bound` farthest from the centre: one plane, a yet cheaper bound
-    /// for points nearby.
-    plane: [f64; 4],
+/// A source triangle with what [`closest_on_triangle`] computes of it before looking at the
+/// query, computed once: its answers, exactly.
+struct Triangle {
+    corners: [[f64; 3]; 3],
+    ab: [f64; 3],
+    ac: [f64; 3],
+    /// Degenerate by `closest_on_triangle`'s test (which then measures the edges).
+    degenerate: bool,
 }
 
-/// Shortlisted triangles beyond which listing costs more than it saves: the queries then go
-/// to the whole source's Bvh.
-const MAX_SHORTLIST: usize = 1024;
-/// Grid cells a listing may visit, for the same reason.
-const MAX_LIST_CELLS: usize = 4096;
-
-/// Marks the faces already met during one listing, without clearing between listings.
-struct Seen {
-    stamp: Vec<u32>,
-    now: u32,
-}
-
-impl Seen {
-    fn new(n: usize) -> Self {
-        Self { stamp: vec![0; n], now: 0 }
+impl Triangle {
+    fn new(corners: [[f64; 3]; 3]) -> Self {
+        let [a, b, c] = corners;
+        let (ab, ac) = (sub(b, a), sub(c, a));
+        let n = cross(ab, ac);
+        Self { corners, ab, ac, degenerate: dot(n, n) <= 1e-20 * dot(ab, ab) * dot(ac, ac) }
     }
 
-    fn next(&mut self) {
-        self.now = self.now.wrapping_add(1);
-        if self.now == 0 {
-            self.stamp.fill(0);
-            self.now = 1;
+    /// Squared distance from `p` and barycentrics of the closest point: those of
+    /// [`closest_on_triangle`], whose proper case this repeats operation for operation (the
+    /// region tests of Ericson's *Real-Time Collision Detection*, 5.1.5).
+    fn closest(&self, p: [f64; 3]) -> (f64, [f64; 3]) {
+        if !self.degenerate {
+            let (point, bary) = self.closest_proper(p);
+            if point.iter().all(|x| x.is_finite()) {
+                let d = sub(point, p);
+                return (dot(d, d), bary);
+            }
         }
+        let (_, dist2, bary) = closest_on_triangle(p, self.corners);
+        (dist2, bary)
     }
 
-    /// Whether `f` is met for the first time in this listing.
-    fn first(&mut self, f: u32) -> bool {
-        std::mem::replace(&mut self.stamp[f as usize], self.now) != self.now
+    fn closest_proper(&self, p: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+        let ([a, b, c], ab, ac) = (self.corners, self.ab, self.ac);
+        let ap = sub(p, a);
+        let (d1, d2) = (dot(ab, ap), dot(ac, ap));
+        if d1 <= 0.0 && d2 <= 0.0 {
+            return (a, [1.0, 0.0, 0.0]);
+        }
+        let bp = sub(p, b);
+        let (d3, d4) = (dot(ab, bp), dot(ac, bp));
+        if d3 >= 0.0 && d4 <= d3 {
+            return (b, [0.0, 1.0, 0.0]);
+        }
+        let vc = d1 * d4 - d3 * d2;
+        if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+            let t = d1 / (d1 - d3);
+            return (add(a, scale(ab, t)), [1.0 - t, t, 0.0]);
+        }
+        let cp = sub(p, c);
+        let (d5, d6) = (dot(ab, cp), dot(ac, cp));
+        if d6 >= 0.0 && d5 <= d6 {
+            return (c, [0.0, 0.0, 1.0]);
+        }
+        let vb = d5 * d2 - d1 * d6;
+        if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+            let t = d2 / (d2 - d6);
+            return (add(a, scale(ac, t)), [1.0 - t, 0.0, t]);
+        }
+        let va = d3 * d6 - d5 * d4;
+        if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+            let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+            return (add(b, scale(sub(c, b), w)), [0.0, 1.0 - w, w]);
+        }
+        let denom = 1.0 / (va + vb + vc);
+        let (v, w) = (vb * denom, vc * denom);
+        (add(a, add(scale(ab, v), scale(ac, w))), [1.0 - v - w, v, w])
     }
 }
 
@@ -242,8 +301,10 @@ impl Seen {
 /// off the corners, for a fifth of its cost. Built from the triangle's own corners, so that it
 /// holds for degenerate triangles too (where it is only weaker).
 struct Bound {
-    /// `(n, o)`: the half-space `n · x <= o`.
-    planes: [[f64; 4]; 5],
+    /// Plane `i` is the half-space `n[0][i] x + n[1][i] y + n[2][i] z <= o[i]`; stored by
+    /// coordinate, and the first repeated as a sixth, so that they are tested in pairs.
+    n: [[f64; 6]; 3],
+    o: [f64; 6],
 }
 
 impl Bound {
@@ -254,28 +315,27 @@ impl Bound {
             [n[0], n[1], n[2], o]
         };
         let edge = |i: usize| holding(normalize(cross(sub(t[(i + 1) % 3], t[i]), normal)));
-        Self { planes: [holding(normal), holding(scale(normal, -1.0)), edge(0), edge(1), edge(2)] }
+        let planes = [holding(normal), holding(scale(normal, -1.0)), edge(0), edge(1), edge(2), holding(normal)];
+        Self { n: [0, 1, 2].map(|k| planes.map(|p| p[k])), o: planes.map(|p| p[3]) }
     }
 
-    /// The plane of half-space `k` as seen from `q`: positive outside.
-    fn side(&self, k: usize, q: [f64; 3]) -> f64 {
-        plane_side(self.planes[k], q)
+    /// Whether `q` lies farther than `reach` outside one of the planes, so that the triangle
+    /// is farther than `reach` from it. (Any NaN only keeps a triangle in.)
+    #[inline]
+    fn beyond(&self, q: [f64; 3], reach: f64) -> bool {
+        let mut out = false;
+        for i in 0..6 {
+            out |= self.n[0][i] * q[0] + self.n[1][i] * q[1] + self.n[2][i] * q[2] - self.o[i] > reach;
+        }
+        out
     }
 
+    /// The distance from `q` to the farthest of the planes, on their outer side: a lower
+    /// bound on the distance to the triangle.
+    #[cfg(test)]
     fn lower(&self, q: [f64; 3]) -> f64 {
-        (1..5).fold(self.side(0, q), |d, k| d.max(self.side(k, q)))
+        (0..6).map(|i| self.n[0][i] * q[0] + self.n[1][i] * q[1] + self.n[2][i] * q[2] - self.o[i]).fold(f64::NEG_INFINITY, f64::max)
     }
-
-    /// The half-space whose plane is farthest from `q`, and that distance (the bound).
-    fn farthest(&self, q: [f64; 3]) -> (f64, [f64; 4]) {
-        let sides = [0, 1, 2, 3, 4].map(|k| self.side(k, q));
-        let k = (1..5).fold(0, |b, k| if sides[k] > sides[b] { k } else { b });
-        (sides[k], self.planes[k])
-    }
-}
-
-fn plane_side(p: [f64; 4], q: [f64; 3]) -> f64 {
-    p[0] * q[0] + p[1] * q[1] + p[2] * q[2] - p[3]
 }
 
 fn mean_edge(tris: &[[[f64; 3]; 3]]) -> f64 {
@@ -285,33 +345,75 @@ fn mean_edge(tris: &[[[f64; 3]; 3]]) -> f64 {
 
 type Aabb = ([f64; 3], [f64; 3]);
 
-fn box_dist2((lo, hi): &Aabb, q: [f64; 3]) -> f64 {
-    (0..3).map(|k| (lo[k] - q[k]).max(q[k] - hi[k]).max(0.0).powi(2)).sum()
-}
-
 /// Cells a grid may have (and entries beyond 16 per triangle): enough for triangle-sized
 /// cells on meshes of a few 100k triangles, few enough to build in milliseconds whatever the
 /// mesh's shape.
 const MAX_CELLS: f64 = 4_000_000.0;
 
+/// Sub-cells of a grid cell along each axis: 4, so that a cell's 64 fit the bits of a `u64`.
+const SUB: usize = 4;
+
+/// The bits of the sub-cells (bit `x + 4 y + 16 z`) whose coordinate along `axis` lies in
+/// `lo..=hi`, for every axis and range.
+const AXIS_BITS: [[[u64; SUB]; SUB]; 3] = axis_bits();
+
+const fn axis_bits() -> [[[u64; SUB]; SUB]; 3] {
+    let mut table = [[[0u64; SUB]; SUB]; 3];
+    let mut axis = 0;
+    while axis < 3 {
+        let mut lo = 0;
+        while lo < SUB {
+            let mut hi = lo;
+            while hi < SUB {
+                let mut bits = 0u64;
+                let mut i = 0;
+                while i < SUB * SUB * SUB {
+                    let s = [i % SUB, i / SUB % SUB, i / (SUB * SUB)][axis];
+                    if lo <= s && s <= hi {
+                        bits |= 1 << i;
+                    }
+                    i += 1;
+                }
+                table[axis][lo][hi] = bits;
+                hi += 1;
+            }
+            lo += 1;
+        }
+        axis += 1;
+    }
+    table
+}
+
+/// Inclusive ranges of sub-cells along each axis: `[first, last]`.
+type Span = [[usize; 2]; 3];
+
+/// Cells that the sub-cells `span` meet.
+fn cells(span: &Span) -> usize {
+    span.iter().map(|&[a, b]| b / SUB - a / SUB + 1).product()
+}
+
 /// The source triangles bucketed by the cells of a uniform grid that their bounding boxes
-/// overlap: the query for all triangles near a ball, which the `Finder` needs and [`Bvh`]
-/// does not offer.
+/// overlap, each entry with the mask of the cell's 4 x 4 x 4 sub-cells that the box overlaps.
+/// Positions map to sub-cells by one monotone function (`FaceGrid::fine`) for the boxes and for
+/// the queries, so a box that meets a query's cube always shares a sub-cell with it.
 struct FaceGrid {
     lo: [f64; 3],
-    cell: f64,
+    /// Side of a sub-cell, and its inverse.
+    fine: f64,
+    per_fine: f64,
+    /// Cells along each axis, and the last sub-cell index.
     dims: [usize; 3],
-    /// Cell `i` holds `faces[starts[i]..starts[i + 1]]`.
+    last: [usize; 3],
+    /// Cell `i` holds `faces[starts[i]..starts[i + 1]]`, with their `masks`.
     starts: Vec<u32>,
     faces: Vec<u32>,
-    /// Bounding box of each source face.
-    boxes: Vec<Aabb>,
+    masks: Vec<u64>,
 }
 
 impl FaceGrid {
     /// A grid over triangles `tris`, with cells about `edge` across.
     fn new(tris: &[[[f64; 3]; 3]], edge: f64) -> Self {
-        let boxes: Vec<Aabb> = tris.iter().map(|&t| triangle_box(t)).collect();
+        let boxes: Vec<Aabb> = tris.par_iter().map(|&t| triangle_box(t)).collect();
         let (lo, hi) = boxes.iter().fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(lo, hi), b| {
             ([0, 1, 2].map(|k| lo[k].min(b.0[k])), [0, 1, 2].map(|k| hi[k].max(b.1[k])))
         });
@@ -333,67 +435,94 @@ impl FaceGrid {
             cell *= 1.25;
         }
         let dims = extent.map(|e| (e / cell) as usize + 1);
-        let mut grid = Self { lo, cell, dims, starts: Vec::new(), faces: Vec::new(), boxes };
-        grid.fill();
+        let fine = cell / SUB as f64;
+        let (starts, faces, masks) = (Vec::new(), Vec::new(), Vec::new());
+        let last = dims.map(|n| n * SUB - 1);
+        let mut grid = Self { lo, fine, per_fine: 1.0 / fine, dims, last, starts, faces, masks };
+        let spans: Vec<Span> = boxes.par_iter().map(|b| grid.span(b.0, b.1)).collect();
+        grid.fill(&spans);
         grid
     }
 
     /// Buckets the faces by cell (counting sort: count, prefix sums, place).
-    fn fill(&mut self) {
+    fn fill(&mut self, spans: &[Span]) {
         let mut starts = vec![0u32; self.dims.iter().product::<usize>() + 1];
-        for b in &self.boxes {
-            self.for_cells(b, |c| starts[c + 1] += 1);
+        for s in spans {
+            self.for_cells(s, |c, _| starts[c + 1] += 1);
         }
         for c in 1..starts.len() {
             starts[c] += starts[c - 1];
         }
         let mut next = starts.clone();
-        let mut faces = vec![0u32; *starts.last().unwrap_or(&0) as usize];
-        for (f, b) in self.boxes.iter().enumerate() {
-            self.for_cells(b, |c| {
+        let total = *starts.last().unwrap_or(&0) as usize;
+        let (mut faces, mut masks) = (vec![0u32; total], vec![0u64; total]);
+        for (f, s) in spans.iter().enumerate() {
+            self.for_cells(s, |c, mask| {
                 faces[next[c] as usize] = f as u32;
+                masks[next[c] as usize] = mask;
                 next[c] += 1;
             });
         }
-        (self.starts, self.faces) = (starts, faces);
+        (self.starts, self.faces, self.masks) = (starts, faces, masks);
     }
 
-    /// The cell range along each axis that the box `[lo, hi]` overlaps (clamped to the grid).
-    fn cell_range(&self, lo: [f64; 3], hi: [f64; 3]) -> [Range<usize>; 3] {
-        let at = |k: usize, x: f64| (((x - self.lo[k]) / self.cell).floor().max(0.0) as usize).min(self.dims[k] - 1);
-        [0, 1, 2].map(|k| at(k, lo[k])..at(k, hi[k]) + 1)
+    /// The sub-cell index along axis `k` of coordinate `x`, clamped to the grid: a monotone
+    /// function of `x` (truncation, not floor, and a NaN maps to 0), which is all the search
+    /// needs, and cheaper than `f64::floor`'s library call on baseline x86-64.
+    #[inline]
+    fn fine(&self, k: usize, x: f64) -> usize {
+        (((x - self.lo[k]) * self.per_fine) as i64).clamp(0, self.last[k] as i64) as usize
     }
 
-    fn for_cells(&self, b: &Aabb, mut visit: impl FnMut(usize)) {
-        let [xs, ys, zs] = self.cell_range(b.0, b.1);
-        for z in zs {
-            for y in ys.clone() {
-                for x in xs.clone() {
-                    visit((z * self.dims[1] + y) * self.dims[0] + x);
+    /// The sub-cells that the box `[lo, hi]` overlaps.
+    #[inline]
+    fn span(&self, lo: [f64; 3], hi: [f64; 3]) -> Span {
+        [[self.fine(0, lo[0]), self.fine(0, hi[0])], [self.fine(1, lo[1]), self.fine(1, hi[1])], [self.fine(2, lo[2]), self.fine(2, hi[2])]]
+    }
+
+    /// The sub-cells of the cube of half-side `half` around `q`.
+    #[inline]
+    fn cube(&self, q: [f64; 3], half: f64) -> Span {
+        self.span([q[0] - half, q[1] - half, q[2] - half], [q[0] + half, q[1] + half, q[2] + half])
+    }
+
+    /// Calls `visit` on each cell that the sub-cells `span` meet, with the mask of those of
+    /// its sub-cells.
+    #[inline]
+    fn for_cells(&self, span: &Span, mut visit: impl FnMut(usize, u64)) {
+        // The sub-cells of `span` along axis `k` within cell `c`, as bits.
+        let bits = |k: usize, c: usize| {
+            let [first, last] = span[k];
+            let base = c * SUB;
+            AXIS_BITS[k][first.max(base) - base][last.min(base + SUB - 1) - base]
+        };
+        for z in span[2][0] / SUB..=span[2][1] / SUB {
+            let bz = bits(2, z);
+            for y in span[1][0] / SUB..=span[1][1] / SUB {
+                let byz = bits(1, y) & bz;
+                for x in span[0][0] / SUB..=span[0][1] / SUB {
+                    visit(self.cell_index(x, y, z), bits(0, x) & byz);
                 }
             }
         }
     }
 
-    /// Calls `visit` once on each face whose bounding box comes within `radius` of `centre`,
-    /// while it returns `true`; `false` if it returned `false` or there were too many cells to
-    /// visit.
-    fn visit(&self, centre: [f64; 3], radius: f64, seen: &mut Seen, mut visit: impl FnMut(u32) -> bool) -> bool {
-        let b = (centre.map(|c| c - radius), centre.map(|c| c + radius));
-        let count: usize = self.cell_range(b.0, b.1).iter().map(|r| r.len()).product();
-        if count > MAX_LIST_CELLS {
-            return false;
-        }
-        seen.next();
-        let mut going = true;
-        self.for_cells(&b, |c| {
-            for &f in &self.faces[self.starts[c] as usize..self.starts[c + 1] as usize] {
-                if going && seen.first(f) && box_dist2(&self.boxes[f as usize], centre) <= radius * radius {
-                    going = visit(f);
-                }
-            }
+    fn cell_index(&self, x: usize, y: usize, z: usize) -> usize {
+        (z * self.dims[1] + y) * self.dims[0] + x
+    }
+
+    fn entries(&self, c: usize) -> &[u32] {
+        &self.faces[self.starts[c] as usize..self.starts[c + 1] as usize]
+    }
+
+    /// Calls `visit` on the entries (faces and masks) of each cell that the sub-cells `span`
+    /// meet, with the mask of those of its sub-cells.
+    #[inline]
+    fn for_entries(&self, span: &Span, mut visit: impl FnMut(&[u32], &[u64], u64)) {
+        self.for_cells(span, |c, mask| {
+            let (a, b) = (self.starts[c] as usize, self.starts[c + 1] as usize);
+            visit(&self.faces[a..b], &self.masks[a..b], mask);
         });
-        going
     }
 }
 
@@ -407,8 +536,8 @@ fn triangle_box(c: [[f64; 3]; 3]) -> Aabb {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geom::mesh::{add, interpolate};
     use crate::geom::testmesh::{grid, uv_sphere, Rng};
-    use crate::geom::mesh::interpolate;
 
     #[test]
     fn closest_points_and_barycentrics_of_proper_and_degenerate_triangles() {
@@ -423,39 +552,130 @@ mod tests {
         assert_eq!(p, [0.5, 0.0, 0.0]);
         assert_eq!(interpolate(line, w), p);
         assert_eq!(closest_on_triangle([1.0, 2.0, 1.0], [[1.0; 3]; 3]).2, [1.0, 0.0, 0.0]);
-        // The bound never exceeds the distance, for proper and degenerate triangles.
+        // The bound never exceeds the distance, for proper and degenerate triangles, and
+        // `beyond` says exactly whether it exceeds a reach; the prepared triangle measures
+        // exactly as `closest_on_triangle` does, in every region of every kind of triangle.
         let mut rng = Rng(17);
-        for t in [tri, line, [[1.0; 3]; 3], [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.3, -2.0, 0.5]]] {
-            let b = Bound::new(t);
-            for _ in 0..1000 {
-                let q = rng.point(-3.0, 3.0);
-                assert!(b.lower(q) <= closest_on_triangle(q, t).1.sqrt() + 1e-12, "{t:?} {q:?}");
+        let sliver = [[0.0, 0.0, 0.0], [1.0, 1e-9, 0.0], [2.0, 0.0, 1e-12]];
+        let far = [[1e6, 1e6, 1e6], [1e6 + 1e-3, 1e6, 1e6], [1e6, 1e6 + 1e-3, 1e6 + 1e-3]];
+        let skew = [[0.0, 0.0, 0.0], [1.0, 1.0, 1.0], [0.3, -2.0, 0.5]];
+        for t in [tri, line, [[1.0; 3]; 3], skew, sliver, far] {
+            let (b, prepared) = (Bound::new(t), Triangle::new(t));
+            let centre = t[0];
+            for _ in 0..2000 {
+                let q = add(centre, rng.point(-3.0, 3.0));
+                let (_, d2, bary) = closest_on_triangle(q, t);
+                assert!(b.lower(q) <= d2.sqrt() + 1e-9, "{t:?} {q:?}");
+                let reach = rng.range(0.0, 3.0);
+                assert_eq!(b.beyond(q, reach), b.lower(q) > reach);
+                assert_eq!(prepared.closest(q), (d2, bary), "{t:?} {q:?}");
             }
         }
     }
 
+    /// The Bvh's answer to `q`, as a `Hit` of `source`.
+    fn bvh_hit(source: &Source, bvh: &Bvh, q: [f64; 3]) -> Hit {
+        source.hit(q, bvh.closest_point(q).unwrap().triangle)
+    }
+
     #[test]
     fn finder_agrees_with_the_bvh_near_and_far() {
-        // A dense patch (more triangles than a gathering may hold) inside a coarse sphere, and
-        // queries that walk near the patch, then jump far off (where gathering fails too).
+        // A dense patch inside a coarse sphere, and queries that walk near the patch and the
+        // sphere, then jump far off (beyond the grid's reach: left to `closest_far`).
         let (mut pos, mut faces) = uv_sphere(12, 24, |th, ph| 1.0 + 0.05 * (4.0 * th).sin() * (6.0 * ph).cos());
         let (p2, f2) = grid(60, 60, 0.004, [0.2, 0.2, 0.0]);
         let n = pos.len() as u32;
         pos.extend(p2);
         faces.extend(f2.iter().map(|f| f.map(|v| v + n)));
-        let source = Source::new(&Mesh::new(pos, faces), 10.0);
-        let mut finder = Finder::new(&source, 0.02);
+        let mesh = Mesh::new(pos, faces);
+        let source = Source::new(&mesh, 10.0);
+        let bvh = Bvh::new(&mesh.positions, &mesh.faces);
+        let mut finder = Finder::new(&source);
         let mut rng = Rng(29);
-        let mut q = [0.3, 0.3, 0.01];
-        for i in 0..20_000 {
-            q = match i % 4000 {
-                0 => [0.3, 0.3, 0.001],
-                1999 => rng.point(-3.0, 3.0),
-                _ => add(q, rng.point(-0.01, 0.01)),
+        // Walks near the patch (its side is 0.236) and near the sphere, each ending with a
+        // jump far off, and walks far off.
+        let (mut uv, mut q) = ([0.0, 0.0], [0.0; 3]);
+        let (mut far, mut near) = (Vec::new(), 0);
+        for i in 0..40_000 {
+            let walk = i / 2000 % 4;
+            uv = if i % 2000 == 0 { [rng.unit(), rng.unit()] } else { add([uv[0], uv[1], 0.0], rng.point(-0.003, 0.003))[..2].try_into().unwrap() };
+            let (u, v) = (uv[0].rem_euclid(1.0), uv[1].rem_euclid(1.0));
+            q = match (walk, i % 2000) {
+                (_, 1999) => rng.point(-3.0, 3.0),
+                (0, _) => [0.2 + 0.236 * u, 0.2 + 0.236 * v, rng.range(-0.002, 0.002)],
+                (1, _) => {
+                    let (th, ph) = (0.2 + 2.7 * v, 6.3 * u);
+                    let r = 1.0 + 0.05 * (4.0 * th).sin() * (6.0 * ph).cos() + rng.range(-0.01, 0.01);
+                    [r * th.sin() * ph.cos(), r * th.sin() * ph.sin(), r * th.cos()]
+                }
+                (2, _) => add(q, rng.point(-0.01, 0.01)),
+                _ => [10.0 + u, v, 0.0],
             };
-            let got = finder.closest(q).unwrap();
-            let want = source.hit(q, source.bvh.closest_point(q).unwrap().triangle);
-            assert_eq!(got, want, "query {i} at {q:?}");
+            match finder.closest(q) {
+                Some(got) => {
+                    assert_eq!(got, bvh_hit(&source, &bvh, q), "query {i} at {q:?}");
+                    near += 1;
+                }
+                None => far.push(q),
+            }
+        }
+        // Near the surface the grid answers; far off (walks 2 and 3), mostly the Bvh.
+        assert!(near > 18_000 && far.len() > 15_000, "{near} near, {} far", far.len());
+        let hits = source.closest_far(&far);
+        for (q, got) in far.iter().zip(hits) {
+            assert_eq!(got.unwrap(), bvh_hit(&source, &bvh, *q), "far query at {q:?}");
+        }
+    }
+
+    #[test]
+    fn ties_go_to_the_lowest_face_as_in_the_bvh() {
+        // A grid whose every triangle is listed twice (the copy after the original), queried on
+        // its vertices, edges and faces, from above and in the plane: every query ties.
+        let (pos, faces) = grid(8, 8, 0.25, [0.0, 0.0, 0.0]);
+        let doubled: Vec<[u32; 3]> = faces.iter().chain(&faces).copied().collect();
+        let mesh = Mesh::new(pos, doubled);
+        let source = Source::new(&mesh, 10.0);
+        let bvh = Bvh::new(&mesh.positions, &mesh.faces);
+        let mut finder = Finder::new(&source);
+        for i in 0..=32 {
+            for j in 0..=32 {
+                for z in [0.0, 0.1, -0.3] {
+                    let q = [i as f64 / 16.0, j as f64 / 16.0, z];
+                    let got = finder.closest(q).unwrap();
+                    assert!((got.triangle as usize) < faces.len());
+                    assert_eq!(got, bvh_hit(&source, &bvh, q), "{q:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn boxes_that_meet_a_cube_share_a_masked_sub_cell_with_it() {
+        // Random boxes and cubes on a grid of random triangles: whenever a box meets a cube,
+        // the grid lists the box's face in a cell of the cube with a mask that meets the cube's.
+        let mut rng = Rng(41);
+        let tris: Vec<[[f64; 3]; 3]> = (0..300)
+            .map(|_| {
+                let a = rng.point(-2.0, 2.0);
+                [a, add(a, rng.point(-0.3, 0.3)), add(a, rng.point(-0.3, 0.3))]
+            })
+            .collect();
+        let grid = FaceGrid::new(&tris, 0.1);
+        for _ in 0..3000 {
+            let q = rng.point(-2.5, 2.5);
+            let half = rng.range(0.0, 0.3);
+            let cube = grid.cube(q, half);
+            let mut met = vec![false; tris.len()];
+            grid.for_entries(&cube, |faces, masks, mask| {
+                for (&f, &m) in faces.iter().zip(masks) {
+                    met[f as usize] |= m & mask != 0;
+                }
+            });
+            for (f, &t) in tris.iter().enumerate() {
+                let (lo, hi) = triangle_box(t);
+                let meets = (0..3).all(|k| lo[k] <= q[k] + half && hi[k] >= q[k] - half);
+                assert!(!meets || met[f], "face {f} at {q:?} half {half}");
+            }
         }
     }
 }

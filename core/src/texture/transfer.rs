@@ -11,8 +11,10 @@
 //! The closest-point searches dominate the cost (an atlas has millions of texels). Rather than
 //! asking the source's Bvh for each, the image is cut into bands of rows, one rayon task each;
 //! a band is rasterised, then walked texel after adjacent texel, so that a
-//! `crate::geom::closest::Finder` serves many texels from one shortlist. Its answers are exactly
-//! the Bvh's, so the result does not depend on the walk.
+//! `crate::geom::closest::Finder` starts each search from the answer before, and mostly
+//! settles it within a cell of its grid. Its answers are exactly the Bvh's (the few texels
+//! too far from the source for its grid are answered by a Bvh at the end), so the result
+//! does not depend on the walk.
 //!
 //! Image conventions are those of [`crate::texture`]: rows from the top, `v` up, texel
 //! `(x, y)` centred at `u = (x + 0.5) / width`, `v = 1 - (y + 0.5) / height`.
@@ -23,7 +25,7 @@ use rayon::prelude::*;
 
 use crate::geom::bins::Bins;
 use crate::geom::closest::{largest_coordinate, Finder, Hit, Source};
-use crate::geom::mesh::{cross, interpolate, norm, sub};
+use crate::geom::mesh::interpolate;
 use crate::texture::{Texture, UvMesh};
 
 /// How far around a UV triangle texels are still covered, in texels along each axis: a
@@ -85,18 +87,31 @@ pub fn transfer_texture(
     let mut covered = vec![false; width * height];
     if !source.mesh.faces.is_empty() && width > 0 && height > 0 {
         let prepared = Source::new(&source.mesh, largest_coordinate(&target.mesh.positions));
-        let span = span(target, prepared.edge, width, height);
-        let ctx = Context { target, source, source_texture, prepared, span, width, height };
+        let ctx = Context { target, source, source_texture, prepared, width, height };
         let bins = bin_faces(&ctx);
         let rows = BAND * width;
         // Each rayon job reuses its buffers and finder over its bands; the results do not
-        // depend on what the finder remembers, so neither on how the bands are split.
-        rgb.par_chunks_mut(rows).zip(covered.par_chunks_mut(rows)).enumerate().for_each_init(
-            || Worker::new(&ctx),
-            |worker, (band, (rgb, covered))| {
-                worker.band(band * BAND, bins.of(band), rgb, covered);
-            },
-        );
+        // depend on what the finder remembers, so neither on how the bands are split. The
+        // texels too far from the source for the finder are answered together at the end.
+        let far: Vec<(usize, [f64; 3])> = rgb
+            .par_chunks_mut(rows)
+            .zip(covered.par_chunks_mut(rows))
+            .enumerate()
+            .map_init(
+                || Worker::new(&ctx),
+                |worker, (band, (rgb, covered))| worker.band(band * BAND, bins.of(band), rgb, covered),
+            )
+            .flatten_iter()
+            .collect();
+        if !far.is_empty() {
+            let points: Vec<[f64; 3]> = far.iter().map(|&(_, p)| p).collect();
+            for (&(i, _), hit) in far.iter().zip(ctx.prepared.closest_far(&points)) {
+                if let Some(hit) = hit {
+                    rgb[i] = ctx.colour(&hit);
+                    covered[i] = true;
+                }
+            }
+        }
     }
     Transferred { texture: Texture { width, height, rgb }, covered }
 }
@@ -106,10 +121,7 @@ struct Context<'a> {
     target: &'a UvMesh,
     source: &'a UvMesh,
     source_texture: &'a Texture,
-    prepared: Source,
-    /// How far a [`Finder`]'s shortlist reaches beyond the distance to the source: see
-    /// [`span`].
-    span: f64,
+    prepared: Source<'a>,
     width: usize,
     height: usize,
 }
@@ -129,10 +141,28 @@ impl Context<'_> {
         let uv = self.source.uv_faces[hit.triangle as usize].map(|i| self.source.uv[i as usize]);
         let w = hit.bary;
         let uv = [0, 1].map(|k| w[0] * uv[0][k] + w[1] * uv[1][k] + w[2] * uv[2][k]);
-        // Truncating after adding a half rounds these non-negative values, without the
-        // library call that `f64::round` costs on baseline x86-64.
-        self.source_texture.sample(uv).map(|c| (c + 0.5) as u8)
+        sample_rounded(self.source_texture, uv)
     }
+}
+
+/// [`Texture::sample`] at `uv`, rounded: the same arithmetic, without its library calls on
+/// baseline x86-64 (`floor`: the coordinates are clamped non-negative first, so truncating
+/// floors them; `round`: truncating after adding a half rounds the non-negative channels).
+fn sample_rounded(texture: &Texture, uv: [f64; 2]) -> [u8; 3] {
+    let (w, h) = (texture.width, texture.height);
+    let fx = (uv[0] * w as f64 - 0.5).clamp(0.0, (w - 1) as f64);
+    let fy = ((1.0 - uv[1]) * h as f64 - 0.5).clamp(0.0, (h - 1) as f64);
+    let (fx, fy) = (if fx.is_nan() { 0.0 } else { fx }, if fy.is_nan() { 0.0 } else { fy });
+    let (x0, y0) = (fx as usize, fy as usize);
+    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+    let (tx, ty) = (fx - x0 as f64, fy - y0 as f64);
+    let (top, bottom) = (&texture.rgb[y0 * w..][..w], &texture.rgb[y1 * w..][..w]);
+    let (a, b, c, d) = (top[x0], top[x1], bottom[x0], bottom[x1]);
+    std::array::from_fn(|k| {
+        let top = a[k] as f64 * (1.0 - tx) + b[k] as f64 * tx;
+        let bottom = c[k] as f64 * (1.0 - tx) + d[k] as f64 * tx;
+        (top * (1.0 - ty) + bottom * ty + 0.5) as u8
+    })
 }
 
 /// Sorts the target faces into the bands their covered texels may fall in, so that each band
@@ -159,30 +189,36 @@ struct Worker<'a> {
 
 impl<'a> Worker<'a> {
     fn new(ctx: &'a Context<'a>) -> Self {
-        let finder = Finder::new(&ctx.prepared, ctx.span);
+        let finder = Finder::new(&ctx.prepared);
         Self { ctx, finder, tris: Vec::new(), owners: Owners { keys: Vec::new(), points: Vec::new() } }
     }
 
     /// Rasterises `faces` into the band of rows starting at `y0` and transfers the colour of
-    /// every texel they cover.
-    fn band(&mut self, y0: usize, faces: &[u32], rgb: &mut [[u8; 3]], covered: &mut [bool]) {
+    /// every texel they cover; returns the texels (index in the image, point) that the finder
+    /// leaves to [`Source::closest_far`].
+    fn band(&mut self, y0: usize, faces: &[u32], rgb: &mut [[u8; 3]], covered: &mut [bool]) -> Vec<(usize, [f64; 3])> {
         let ctx = self.ctx;
         let (w, rows) = (ctx.width, rgb.len() / ctx.width);
         self.tris.clear();
         self.tris.extend(faces.iter().filter_map(|&f| Some((f, ctx.uv_triangle(f)?))));
         self.owners.draw_band(ctx, y0, rows, &self.tris);
+        let mut far = Vec::new();
         // Column by column, down and up in turn: each texel is next to the one before, so
-        // the finder's shortlist serves many in a row.
+        // the finder's last answer is mostly the next one's too, or a neighbour of it.
         for x in 0..w {
             for k in 0..rows {
                 let i = if x % 2 == 0 { k } else { rows - 1 - k } * w + x;
                 let Some(point) = self.owners.point(i) else { continue };
-                if let Some(hit) = self.finder.closest(point) {
-                    rgb[i] = ctx.colour(&hit);
-                    covered[i] = true;
+                match self.finder.closest(point) {
+                    Some(hit) => {
+                        rgb[i] = ctx.colour(&hit);
+                        covered[i] = true;
+                    }
+                    None => far.push((y0 * w + i, point)),
                 }
             }
         }
+        far
     }
 }
 
@@ -384,27 +420,6 @@ fn floor(x: f64) -> i64 {
 fn ceil(x: f64) -> i64 {
     let t = x as i64;
     if (t as f64) < x { t + 1 } else { t }
-}
-
-/// How far a [`Finder`]'s shortlist reaches beyond its own distance to the source, in target
-/// texels: it then serves the texels about that far along the band before it is remade.
-const SPAN: f64 = 8.0;
-
-/// `SPAN` texels in 3D, the texel size taken from a sample of the target's faces; but kept
-/// between a quarter and two source edges, so that shortlists stay short where texels are
-/// large and are not remade at every texel where they are small.
-fn span(target: &UvMesh, edge: f64, width: usize, height: usize) -> f64 {
-    let step = target.mesh.faces.len().div_ceil(4096).max(1);
-    let (mut area, mut texels) = (0.0, 0.0);
-    for f in (0..target.mesh.faces.len()).step_by(step) {
-        let [a, b, c] = target.mesh.faces[f].map(|v| target.mesh.positions[v as usize]);
-        area += norm(cross(sub(b, a), sub(c, a)));
-        let [p, q, r] = target.uv_faces[f].map(|i| target.uv[i as usize]);
-        texels += ((q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])).abs() * (width * height) as f64;
-    }
-    let texel = if texels > 0.0 { (area / texels).sqrt() } else { 0.0 };
-    let span = (SPAN * texel).clamp(0.25 * edge, 2.0 * edge);
-    if span > 0.0 && span.is_finite() { span } else { 1.0 }
 }
 
 /// Parameter in [0, 1] of the point of segment `ab` nearest to `p`, and its squared distance.
@@ -654,6 +669,25 @@ mod tests {
         let one = run(1);
         assert!(one.covered.iter().filter(|&&c| c).count() > 150 * 97 * 9 / 10);
         assert_eq!(one, run(2));
+    }
+
+    #[test]
+    fn rounded_samples_are_the_texture_samples_rounded() {
+        let mut rng = Rng(31);
+        for (w, h) in [(1, 1), (1, 7), (5, 1), (13, 8), (64, 32)] {
+            let tex = noise(w, h, w as u64 + 100 * h as u64);
+            let mut uvs = vec![[f64::NAN, 0.5], [0.5, f64::NAN], [-0.1, 1.3], [1.0, 0.0], [0.0, 1.0], [f64::INFINITY, -1e300]];
+            // Texel centres and edges exactly, and anywhere around the image.
+            for x in 0..=2 * w {
+                for y in 0..=2 * h {
+                    uvs.push([x as f64 / (2 * w) as f64, y as f64 / (2 * h) as f64]);
+                }
+            }
+            uvs.extend((0..2000).map(|_| [rng.range(-0.2, 1.2), rng.range(-0.2, 1.2)]));
+            for uv in uvs {
+                assert_eq!(sample_rounded(&tex, uv), tex.sample(uv).map(|c| (c + 0.5) as u8), "{w}x{h} at {uv:?}");
+            }
+        }
     }
 
     #[test]
