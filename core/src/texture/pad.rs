@@ -23,12 +23,22 @@ pub fn pad(texture: &mut Texture, covered: &[bool]) {
     if covered.iter().all(|&c| c) || !covered.contains(&true) {
         return;
     }
-    let mut levels = vec![reduce(texture.width, texture.height, |x, y| {
-        let i = y * texture.width + x;
-        (texture.rgb[i].map(f32::from), if covered[i] { 1.0 } else { 0.0 })
+    let (rgb, w) = (&texture.rgb, texture.width);
+    // Full-resolution texels weigh 1 or 0: adding the colour is adding it times its weight.
+    let mut levels = vec![reduce(w, texture.height, |i, sum, total| {
+        if covered[i] {
+            (0..3).for_each(|k| sum[k] += f32::from(rgb[i][k]));
+            *total += 1.0;
+        }
     })];
     while let Some(last) = levels.last().filter(|l| l.width > 1 || l.height > 1) {
-        let next = reduce(last.width, last.height, |x, y| last.at(x, y));
+        let next = reduce(last.width, last.height, |i, sum, total| {
+            let (c, wt) = (last.colour[i], last.weight[i]);
+            if wt > 0.0 {
+                (0..3).for_each(|k| sum[k] += c[k] * wt);
+                *total += wt;
+            }
+        });
         levels.push(next);
     }
     for k in (0..levels.len() - 1).rev() {
@@ -48,22 +58,26 @@ struct Level {
 }
 
 impl Level {
-    fn at(&self, x: usize, y: usize) -> ([f32; 3], f32) {
-        let i = y * self.width + x;
-        (self.colour[i], self.weight[i])
-    }
-
-    /// The colour at the centre of texel `(x, y)` of the level above (twice the size),
-    /// interpolated bilinearly.
-    fn upsample(&self, x: usize, y: usize) -> [f32; 3] {
-        let ((x0, x1, tx), (y0, y1, ty)) = (taps(x, self.width), taps(y, self.height));
-        let c = |x: usize, y: usize| self.colour[y * self.width + x];
-        let (a, b, c, d) = (c(x0, y0), c(x1, y0), c(x0, y1), c(x1, y1));
-        std::array::from_fn(|k| {
-            let top = a[k] + (b[k] - a[k]) * tx;
-            let bottom = c[k] + (d[k] - c[k]) * tx;
-            top + (bottom - top) * ty
-        })
+    /// Calls `fill(x, colour)` for each texel `x` of row `y` of the level above (twice the
+    /// size) that `wanted` says, with the colour at its centre interpolated bilinearly.
+    fn upsample_row(&self, y: usize, width: usize, mut wanted: impl FnMut(usize) -> bool, mut fill: impl FnMut(usize, [f32; 3])) {
+        let (y0, y1, ty) = taps(y, self.height);
+        let (r0, r1) = (&self.colour[y0 * self.width..][..self.width], &self.colour[y1 * self.width..][..self.width]);
+        for x in 0..width {
+            if !wanted(x) {
+                continue;
+            }
+            let (x0, x1, tx) = taps(x, self.width);
+            let (a, b, c, d) = (r0[x0], r0[x1], r1[x0], r1[x1]);
+            fill(
+                x,
+                std::array::from_fn(|k| {
+                    let top = a[k] + (b[k] - a[k]) * tx;
+                    let bottom = c[k] + (d[k] - c[k]) * tx;
+                    top + (bottom - top) * ty
+                }),
+            );
+        }
     }
 }
 
@@ -80,22 +94,23 @@ fn taps(i: usize, n: usize) -> (usize, usize, f32) {
     }
 }
 
-/// The next coarser level of a `width` x `height` level read through `fine`: each texel is the
-/// weighted mean of its (up to) four children.
-fn reduce(width: usize, height: usize, fine: impl Fn(usize, usize) -> ([f32; 3], f32) + Sync) -> Level {
+/// The next coarser level of a `width` x `height` level: each texel is the weighted mean of
+/// its (up to) four children, which `add(i, sum, total)` adds (`i` the child's index in its
+/// level), in row-major order.
+fn reduce(width: usize, height: usize, add: impl Fn(usize, &mut [f32; 3], &mut f32) + Sync) -> Level {
     let (w, h) = (width.div_ceil(2), height.div_ceil(2));
     let mut colour = vec![[0.0f32; 3]; w * h];
     let mut weight = vec![0.0f32; w * h];
     colour.par_chunks_mut(w).zip(weight.par_chunks_mut(w)).enumerate().for_each(|(y, (crow, wrow))| {
+        let top = 2 * y * width;
+        let bottom = (2 * y + 1 < height).then_some(top + width);
         for x in 0..w {
             let (mut sum, mut total) = ([0.0f32; 3], 0.0f32);
-            for (fx, fy) in [(2 * x, 2 * y), (2 * x + 1, 2 * y), (2 * x, 2 * y + 1), (2 * x + 1, 2 * y + 1)] {
-                if fx < width && fy < height {
-                    let (c, wt) = fine(fx, fy);
-                    if wt > 0.0 {
-                        (0..3).for_each(|k| sum[k] += c[k] * wt);
-                        total += wt;
-                    }
+            let right = 2 * x + 1 < width;
+            for row in [Some(top), bottom].into_iter().flatten() {
+                add(row + 2 * x, &mut sum, &mut total);
+                if right {
+                    add(row + 2 * x + 1, &mut sum, &mut total);
                 }
             }
             if total > 0.0 {
@@ -111,22 +126,14 @@ fn reduce(width: usize, height: usize, fine: impl Fn(usize, usize) -> ([f32; 3],
 fn fill_level(fine: &mut Level, coarse: &Level) {
     let w = fine.width;
     fine.colour.par_chunks_mut(w).zip(fine.weight.par_chunks(w)).enumerate().for_each(|(y, (row, weights))| {
-        for (x, c) in row.iter_mut().enumerate() {
-            if weights[x] == 0.0 {
-                *c = coarse.upsample(x, y);
-            }
-        }
+        coarse.upsample_row(y, w, |x| weights[x] == 0.0, |x, c| row[x] = c);
     });
 }
 
 fn fill_texture(texture: &mut Texture, covered: &[bool], coarse: &Level) {
     let w = texture.width;
     texture.rgb.par_chunks_mut(w).zip(covered.par_chunks(w)).enumerate().for_each(|(y, (row, cov))| {
-        for (x, c) in row.iter_mut().enumerate() {
-            if !cov[x] {
-                *c = coarse.upsample(x, y).map(round_channel);
-            }
-        }
+        coarse.upsample_row(y, w, |x| !cov[x], |x, c| row[x] = c.map(round_channel));
     });
 }
 
