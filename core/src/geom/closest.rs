@@ -47,10 +47,14 @@ impl<'a> Source<'a> {
     /// Prepares `mesh` for queries from points whose coordinates are at most `magnitude`
     /// (together with the mesh's own, this sets the slack against rounding).
     pub fn new(mesh: &'a Mesh, magnitude: f64) -> Self {
-        let corners: Vec<[[f64; 3]; 3]> = mesh.faces.par_iter().map(|f| f.map(|v| mesh.positions[v as usize])).collect();
-        let bounds = corners.par_iter().map(|&t| Bound::new(t)).collect();
-        let tris = corners.par_iter().map(|&t| Triangle::new(t)).collect();
-        let grid = FaceGrid::new(&corners, mean_edge(&corners));
+        let corners = |f: usize| mesh.faces[f].map(|v| mesh.positions[v as usize]);
+        let n = mesh.faces.len();
+        // The grid's counting sort runs on one thread: beside the rest.
+        let edge = mean_edge(n, corners);
+        let ((tris, bounds), grid) = rayon::join(
+            || (0..n).into_par_iter().map(|f| (Triangle::new(corners(f)), Bound::new(corners(f)))).unzip(),
+            || FaceGrid::new(n, corners, edge),
+        );
         let eps = 1e-12 * (1.0 + magnitude.max(largest_coordinate(&mesh.positions)));
         Self { mesh, grid, tris, bounds, eps }
     }
@@ -338,9 +342,10 @@ impl Bound {
     }
 }
 
-fn mean_edge(tris: &[[[f64; 3]; 3]]) -> f64 {
-    let total: f64 = tris.par_iter().map(|[a, b, c]| norm(sub(*b, *a)) + norm(sub(*c, *b)) + norm(sub(*a, *c))).sum();
-    total / (3 * tris.len().max(1)) as f64
+/// The mean edge length of the `n` triangles whose corners `corners` gives.
+fn mean_edge(n: usize, corners: impl Fn(usize) -> [[f64; 3]; 3] + Sync) -> f64 {
+    let total: f64 = (0..n).into_par_iter().map(&corners).map(|[a, b, c]| norm(sub(b, a)) + norm(sub(c, b)) + norm(sub(a, c))).sum();
+    total / (3 * n.max(1)) as f64
 }
 
 type Aabb = ([f64; 3], [f64; 3]);
@@ -411,12 +416,14 @@ struct FaceGrid {
 }
 
 impl FaceGrid {
-    /// A grid over triangles `tris`, with cells about `edge` across.
-    fn new(tris: &[[[f64; 3]; 3]], edge: f64) -> Self {
-        let boxes: Vec<Aabb> = tris.par_iter().map(|&t| triangle_box(t)).collect();
-        let (lo, hi) = boxes.iter().fold(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |(lo, hi), b| {
-            ([0, 1, 2].map(|k| lo[k].min(b.0[k])), [0, 1, 2].map(|k| hi[k].max(b.1[k])))
-        });
+    /// A grid over the `n` triangles whose corners `corners` gives, with cells about `edge`
+    /// across.
+    fn new(n: usize, corners: impl Fn(usize) -> [[f64; 3]; 3] + Sync, edge: f64) -> Self {
+        let bounds = |f: usize| triangle_box(corners(f));
+        let (lo, hi) = (0..n).into_par_iter().map(bounds).reduce(
+            || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+            |a, b| ([0, 1, 2].map(|k| a.0[k].min(b.0[k])), [0, 1, 2].map(|k| a.1[k].max(b.1[k]))),
+        );
         let extent = [0, 1, 2].map(|k| (hi[k] - lo[k]).max(0.0));
         let largest = extent.iter().fold(0.0f64, |m, &e| m.max(e));
         // Cells about a triangle across, but at most ~1000 along an axis and MAX_CELLS in
@@ -428,9 +435,12 @@ impl FaceGrid {
         // Nor may a few huge triangles among many small ones fill the cells with entries.
         let cells = |cell: f64| extent.iter().map(|e| (e / cell).floor() + 1.0).product::<f64>();
         let entries = |cell: f64| -> f64 {
-            boxes.iter().map(|(lo, hi)| (0..3).map(|k| (hi[k] - lo[k]) / cell + 2.0).product::<f64>()).sum()
+            (0..n).into_par_iter().map(|f| {
+                let (lo, hi) = bounds(f);
+                (0..3).map(|k| (hi[k] - lo[k]) / cell + 2.0).product::<f64>()
+            }).sum()
         };
-        let budget = MAX_CELLS + 16.0 * tris.len() as f64;
+        let budget = MAX_CELLS + 16.0 * n as f64;
         while cells(cell) > MAX_CELLS || entries(cell) > budget {
             cell *= 1.25;
         }
@@ -439,28 +449,40 @@ impl FaceGrid {
         let (starts, faces, masks) = (Vec::new(), Vec::new(), Vec::new());
         let last = dims.map(|n| n * SUB - 1);
         let mut grid = Self { lo, fine, per_fine: 1.0 / fine, dims, last, starts, faces, masks };
-        let spans: Vec<Span> = boxes.par_iter().map(|b| grid.span(b.0, b.1)).collect();
-        grid.fill(&spans);
+        grid.fill(n, bounds);
         grid
     }
 
-    /// Buckets the faces by cell (counting sort: count, prefix sums, place).
-    fn fill(&mut self, spans: &[Span]) {
-        let mut starts = vec![0u32; self.dims.iter().product::<usize>() + 1];
-        for s in spans {
-            self.for_cells(s, |c, _| starts[c + 1] += 1);
+    /// Buckets the `n` faces with bounding boxes `bounds` by cell (counting sort: count, sum,
+    /// place from the ends, the faces in reverse so that each cell lists its own in increasing
+    /// order).
+    fn fill(&mut self, n: usize, bounds: impl Fn(usize) -> Aabb) {
+        let span = |f: usize| {
+            let (lo, hi) = bounds(f);
+            self.span(lo, hi)
+        };
+        let cells = self.dims.iter().product::<usize>();
+        let mut starts = vec![0u32; cells + 1];
+        for f in 0..n {
+            let s = span(f);
+            for z in s[2][0] / SUB..=s[2][1] / SUB {
+                for y in s[1][0] / SUB..=s[1][1] / SUB {
+                    let row = self.cell_index(0, y, z);
+                    starts[row + s[0][0] / SUB..=row + s[0][1] / SUB].iter_mut().for_each(|c| *c += 1);
+                }
+            }
         }
-        for c in 1..starts.len() {
+        for c in 1..cells {
             starts[c] += starts[c - 1];
         }
-        let mut next = starts.clone();
-        let total = *starts.last().unwrap_or(&0) as usize;
+        let total = starts[cells.saturating_sub(1)] as usize;
+        starts[cells] = total as u32;
         let (mut faces, mut masks) = (vec![0u32; total], vec![0u64; total]);
-        for (f, s) in spans.iter().enumerate() {
-            self.for_cells(s, |c, mask| {
-                faces[next[c] as usize] = f as u32;
-                masks[next[c] as usize] = mask;
-                next[c] += 1;
+        for f in (0..n).rev() {
+            self.for_cells(&span(f), |c, mask| {
+                starts[c] -= 1;
+                faces[starts[c] as usize] = f as u32;
+                masks[starts[c] as usize] = mask;
             });
         }
         (self.starts, self.faces, self.masks) = (starts, faces, masks);
@@ -660,7 +682,7 @@ mod tests {
                 [a, add(a, rng.point(-0.3, 0.3)), add(a, rng.point(-0.3, 0.3))]
             })
             .collect();
-        let grid = FaceGrid::new(&tris, 0.1);
+        let grid = FaceGrid::new(tris.len(), |f| tris[f], 0.1);
         for _ in 0..3000 {
             let q = rng.point(-2.5, 2.5);
             let half = rng.range(0.0, 0.3);

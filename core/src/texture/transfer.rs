@@ -86,9 +86,9 @@ pub fn transfer_texture(
     let mut rgb = vec![[0u8; 3]; width * height];
     let mut covered = vec![false; width * height];
     if !source.mesh.faces.is_empty() && width > 0 && height > 0 {
-        let prepared = Source::new(&source.mesh, largest_coordinate(&target.mesh.positions));
+        let magnitude = largest_coordinate(&target.mesh.positions);
+        let (prepared, bins) = rayon::join(|| Source::new(&source.mesh, magnitude), || bin_faces(target, width, height));
         let ctx = Context { target, source, source_texture, prepared, width, height };
-        let bins = bin_faces(&ctx);
         let rows = BAND * width;
         // Each rayon job reuses its buffers and finder over its bands; the results do not
         // depend on what the finder remembers, so neither on how the bands are split. The
@@ -128,8 +128,7 @@ struct Context<'a> {
 
 impl Context<'_> {
     fn uv_triangle(&self, face: u32) -> Option<UvTriangle> {
-        let uv = self.target.uv_faces[face as usize].map(|i| self.target.uv[i as usize]);
-        UvTriangle::new(uv, self.width, self.height)
+        uv_triangle(self.target, face, self.width, self.height)
     }
 
     fn target_corners(&self, face: u32) -> [[f64; 3]; 3] {
@@ -165,14 +164,20 @@ fn sample_rounded(texture: &Texture, uv: [f64; 2]) -> [u8; 3] {
     })
 }
 
+/// The UV triangle of face `face` of `target` in the texels of a `width` x `height` image.
+fn uv_triangle(target: &UvMesh, face: u32, width: usize, height: usize) -> Option<UvTriangle> {
+    let uv = target.uv_faces[face as usize].map(|i| target.uv[i as usize]);
+    UvTriangle::new(uv, width, height)
+}
+
 /// Sorts the target faces into the bands their covered texels may fall in, so that each band
 /// task visits only its own faces (in face order).
-fn bin_faces(ctx: &Context) -> Bins {
-    let bands = ctx.height.div_ceil(BAND);
-    let spans: Vec<Range<u32>> = (0..ctx.target.mesh.faces.len() as u32)
+fn bin_faces(target: &UvMesh, width: usize, height: usize) -> Bins {
+    let bands = height.div_ceil(BAND);
+    let spans: Vec<Range<u32>> = (0..target.mesh.faces.len() as u32)
         .into_par_iter()
         .map(|f| {
-            let texels = ctx.uv_triangle(f).and_then(|t| t.texels(ctx.width, ctx.height));
+            let texels = uv_triangle(target, f, width, height).and_then(|t| t.texels(width, height));
             texels.map_or(0..0, |(_, rows)| (rows.start / BAND) as u32..((rows.end - 1) / BAND + 1) as u32)
         })
         .collect();
