@@ -143,7 +143,9 @@ impl<'a> Finder<'a> {
             },
         };
         self.hint = Some(found.triangle);
-        Some(found)
+        // A distance that overflowed or is NaN (coordinates near the largest floats) settles
+        // nothing here: the Bvh's own comparisons decide such a query.
+        found.dist2.is_finite().then_some(found)
     }
 
     /// The best of `best` and the triangles whose boxes meet the sub-cells `cube` around `q`:
@@ -646,6 +648,28 @@ mod tests {
         let hits = source.closest_far(&far);
         for (q, got) in far.iter().zip(hits) {
             assert_eq!(got.unwrap(), bvh_hit(&source, &bvh, *q), "far query at {q:?}");
+        }
+    }
+
+    #[test]
+    fn queries_with_overflowing_distances_are_left_to_the_bvh() {
+        let (pos, faces) = grid(6, 6, 0.25, [0.0, 0.0, 0.0]);
+        let mesh = Mesh::new(pos, faces);
+        let source = Source::new(&mesh, 10.0);
+        let bvh = Bvh::new(&mesh.positions, &mesh.faces);
+        let mut finder = Finder::new(&source);
+        let queries = [[0.3, 0.2, 0.01], [1e200, 0.0, 0.0], [0.3, 0.2, 0.01], [f64::NAN, 0.0, 0.0], [f64::INFINITY, 1.0, 1.0]];
+        let mut far = Vec::new();
+        for q in queries {
+            match finder.closest(q) {
+                Some(got) => assert_eq!(got, bvh_hit(&source, &bvh, q), "{q:?}"),
+                None => far.push(q),
+            }
+        }
+        assert!(far.len() >= 3);
+        for (q, got) in far.iter().zip(source.closest_far(&far)) {
+            let want = bvh.closest_point(*q).map(|h| source.hit(*q, h.triangle));
+            assert_eq!(format!("{got:?}"), format!("{want:?}"), "{q:?}");
         }
     }
 
