@@ -9,8 +9,9 @@
 //! triangle's bounding box overlaps, so that only the triangles near that cube are bounded
 //! (`Bound`), and only those that may be as near are measured. Where the cube spans more cells
 //! (the walk jumped to another part of the surface, or the source is far), the search visits
-//! ever larger boxes of cells around the query; a query too far from the source for that is
-//! left to [`Source::closest_far`], which asks a Bvh of the whole source.
+//! ever larger cubes around the query, from one sub-cell; a query too far from the source for
+//! that (and the next few, which mostly are too) is left to [`Source::closest_far`], which asks
+//! a Bvh of the whole source.
 //!
 //! The answers are exactly the Bvh's, tie-breaking included (the nearest triangle, and the
 //! lowest index among equally near ones), with the barycentrics of the closest point: the same
@@ -110,8 +111,8 @@ const COOLDOWN: u32 = 64;
 /// Grid cells the cube around a query may span for the masked search; beyond, the cube is far
 /// larger than the sub-cells and the masks would not pay.
 const MAX_QUERY_CELLS: usize = 8;
-/// Grid cells the widening search may visit before it gives a query up to the Bvh: a query
-/// this far (a few triangles) from the source is rare and then costs less there.
+/// Grid cells the widening search's cube may span before the query is given up to the Bvh: a
+/// query this far (a few triangles) from the source is rare, and costs less there.
 const MAX_SEARCH_CELLS: usize = 512;
 
 impl<'a> Finder<'a> {
@@ -120,7 +121,8 @@ impl<'a> Finder<'a> {
     }
 
     /// The closest point of the source to `q`, or `None` if `q` is too far from the source
-    /// for the grid: [`Source::closest_far`] then answers it (or an empty source).
+    /// for the grid (or follows such a query closely, or its distance overflows):
+    /// [`Source::closest_far`] then answers it.
     pub fn closest(&mut self, q: [f64; 3]) -> Option<Hit> {
         if self.cooldown > 0 {
             self.cooldown -= 1;
