@@ -636,3 +636,12 @@ def test_reads_the_shared_textured_basketball_frame():
     assert np.array_equal(mesh.uv_faces.reshape(-1), [int(c[1]) - 1 for c in corners])
     assert np.array_equal(mesh.faces.reshape(-1), [int(c[0]) - 1 for c in corners])
     assert len(np.unique(mesh.positions, axis=0)) < mesh.vertex_count  # seam copies are kept
+
+
+def test_a_fortran_ordered_texture_is_written_pixel_for_pixel(tmp_path):
+    # The core's PNG writer reads its array as a C-ordered slice: write_image hands it one.
+    from dynmesh.io import read_image, write_image
+
+    image = np.random.default_rng(5).integers(0, 256, (6, 10, 3), dtype=np.uint8)
+    write_image(tmp_path / "f.png", np.asfortranarray(image))
+    assert np.array_equal(read_image(tmp_path / "f.png"), image)
