@@ -142,8 +142,7 @@ def encode_frames(
         result = EncodeResult(b"", texture_options=texture_options if textured else None)
         result.data = b"".join(parallel.stream_chunks(enc.header_bytes(), groups, result, on_frame))
         return result
-    tex = _texture.TextureEncoder(opts["subdiv"], texture_options, keep_reconstructions,
-                                  estimate_costs=opts["intra_period"] > 1) if textured else None
+    tex = texture_encoder(opts, texture_options, keep_reconstructions) if textured else None
     result = encode_units(enc, tex, meshes, 0, count, keep_reconstructions, on_frame)
     if len(result.frames) != count:
         raise ValueError(f"{len(result.frames)} frames where {count} were announced")
@@ -152,12 +151,14 @@ def encode_frames(
     return result
 
 
+def texture_encoder(opts: dict, texture_options: dict, keep: bool) -> _texture.TextureEncoder:
+    """The texture stage of a stream coded with the geometry options ``opts``: it estimates
+    texture costs for the frame decisions unless every frame is intra (no decision)."""
+    return _texture.TextureEncoder(opts["subdiv"], texture_options, keep, estimate_costs=opts["intra_period"] > 1)
+
+
 def _peek(meshes: Iterable[Mesh]) -> tuple[Mesh, Iterable[Mesh]]:
     """The first of ``meshes`` and all of them again (a generator is consumed once)."""
-    if isinstance(meshes, list):
-        if not meshes:
-            raise ValueError("no frames")
-        return meshes[0], meshes
     it = iter(meshes)
     first = next(it, None)
     if first is None:

@@ -79,8 +79,7 @@ def encode_group(job: GroupJob) -> api.EncodeResult | None:
     count, lo, hi = job.sequence
     enc = api._encoder(count, lo, hi, job.options)
     enc.start_group(job.first)
-    tex = None if job.texture is None else texture.TextureEncoder(job.options["subdiv"], job.texture, job.keep,
-                                                                  estimate_costs=job.options["intra_period"] > 1)
+    tex = None if job.texture is None else api.texture_encoder(job.options, job.texture, job.keep)
     try:
         return api.encode_units(enc, tex, _frames_here(job), job.first, count, job.keep, None)
     except _Unreachable:
