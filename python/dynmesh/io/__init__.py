@@ -1,7 +1,9 @@
-"""Files in and out: mesh files and texture images (``meshio``: OBJ, MTL, PLY, PNG, atomic
-writes), glTF binaries for ``dynmesh decode --format glb`` (``gltf``), a sequence argument
-to its frame files (``sequence``), and the command line's promises about files (``safety``:
-no output over an input, a staged output directory).
+"""Files in and out: mesh files and texture images (``meshio``: OBJ, MTL, PLY, PNG, JPEG,
+atomic writes; it reads glTF 2.0 frames through ``gltf_read`` and Draco frames through
+``draco``, whose split vertices ``weld`` joins again), glTF binaries for ``dynmesh decode
+--format glb`` (``gltf``), a sequence argument to its frame files (``sequence``), and the
+command line's promises about files (``safety``: no output over an input, a staged output
+directory).
 
 The names below are loaded on first use (PEP 562), as the package's own are: the command
 line imports ``safety`` and ``sequence`` for every command, and ``meshio`` would import numpy.

@@ -1,7 +1,9 @@
-"""Reading and writing single meshes: Wavefront OBJ (+ MTL texture) and PLY.
+"""Reading and writing single meshes: Wavefront OBJ (+ MTL texture) and PLY; reading glTF
+2.0 (.gltf, .glb) and Draco (.drc) as well.
 
 ``read_mesh`` parses OBJ and PLY (ASCII, binary little and big endian) into a
-:class:`~dynmesh.mesh.Mesh`; ``write_mesh`` writes them back. Every problem with
+:class:`~dynmesh.mesh.Mesh`, and hands .gltf/.glb to ``gltf_read`` (through trimesh) and
+.drc to ``draco`` (through DracoPy); ``write_mesh`` writes OBJ and PLY. Every problem with
 the input is a :class:`MeshError` naming the file and, for text formats, the
 1-based line number. Recoverable oddities (polygons that were triangulated, a
 missing material library or texture) are reported as :class:`MeshWarning`.
@@ -52,7 +54,8 @@ class MeshWarning(UserWarning):
 
 
 def read_mesh(path: str | os.PathLike) -> Mesh:
-    """Read an OBJ or PLY file (chosen by extension) into a triangle Mesh.
+    """Read an OBJ, PLY, glTF (.gltf, .glb) or Draco (.drc) file, chosen by extension, into a
+    triangle Mesh.
 
     Polygons are fan-triangulated, with one MeshWarning per file. OBJ texture
     coordinates keep their own per-corner index list (``uv_faces``); the texture of
@@ -60,12 +63,16 @@ def read_mesh(path: str | os.PathLike) -> Mesh:
     to the .mtl file (a missing .mtl or image is a MeshWarning; a missing image's path
     is still stored). PLY reads per-vertex u,v (or s,t / texture_u,texture_v) with
     ``uv_faces == faces``, or MeshLab's per-corner ``texcoord`` lists, and the texture
-    from ``comment TextureFile``. Raises MeshError naming the file (and line) on any error.
+    from ``comment TextureFile``. Texture images may be PNG or JPEG (anything Pillow reads).
+    glTF and Draco: see ``dynmesh.io.gltf_read`` and ``dynmesh.io.draco`` (vertices split at
+    UV seams are welded; glTF's flipped V is turned into OBJ's; a glb's embedded texture is
+    decoded into ``Mesh.image``). Raises MeshError naming the file (and line) on any error.
     """
     path = Path(path)
     reader = _READERS.get(path.suffix.lower())
     if reader is None:
-        raise MeshError(path, f"unknown mesh format {path.suffix!r} (expected .obj or .ply)")
+        raise MeshError(path, f"unknown mesh format {path.suffix!r}: dynmesh reads .obj, .ply, .gltf, .glb "
+                              "and .drc files; convert the frame to one of them")
     try:
         data = path.read_bytes()
     except OSError as e:
@@ -118,16 +125,28 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         pixels = _core.read_png(data)
         if pixels is not None:
             return pixels
-    return _pillow_image(path)
+    return _pillow_image(path, path)
 
 
-def _pillow_image(path: Path) -> np.ndarray:
+def decode_image(data: bytes, path: str | os.PathLike) -> np.ndarray:
+    """As ``read_image``, for the bytes of an image held in another file (a glTF's texture):
+    MeshError names ``path``."""
+    if data.startswith(_PNG_SIGNATURE):
+        pixels = _core.read_png(data)
+        if pixels is not None:
+            return pixels
+    import io
+
+    return _pillow_image(io.BytesIO(data), Path(path))
+
+
+def _pillow_image(source, path: Path) -> np.ndarray:
     from PIL import Image, UnidentifiedImageError
 
     try:
-        with Image.open(path) as im:
+        with Image.open(source) as im:
             return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
-    except (OSError, UnidentifiedImageError, ValueError) as e:
+    except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError) as e:
         raise MeshError(path, f"cannot read texture image: {e}") from None
 
 
@@ -377,5 +396,17 @@ def _ply_header_text(mesh: Mesh, ascii: bool, per_vertex_uv: bool, texcoord: boo
     return "\n".join(lines + ["end_header", ""])
 
 
-_READERS = {".obj": _read_obj, ".ply": _read_ply}
+def _read_gltf(data: bytes, path: Path, notes: list[str]) -> Mesh:
+    from .gltf_read import read_gltf  # imports trimesh: only for glTF files
+
+    return read_gltf(data, path, notes)
+
+
+def _read_draco(data: bytes, path: Path, notes: list[str]) -> Mesh:
+    from .draco import read_draco
+
+    return read_draco(data, path, notes)
+
+
+_READERS = {".obj": _read_obj, ".ply": _read_ply, ".gltf": _read_gltf, ".glb": _read_gltf, ".drc": _read_draco}
 _WRITERS = {".obj": _write_obj, ".ply": _write_ply}

@@ -1,8 +1,8 @@
 """Turning a sequence specification into the ordered list of its frame files.
 
-A specification is a directory (its .obj/.ply files), a glob pattern, or a printf
-pattern such as ``frames/frame_%04d.obj``. Names sort naturally: ``frame2`` comes
-before ``frame10``.
+A specification is a directory (its mesh files: .obj, .ply, .gltf, .glb, .drc), a glob
+pattern, or a printf pattern such as ``frames/frame_%04d.obj``. Names sort naturally:
+``frame2`` comes before ``frame10``.
 """
 
 from __future__ import annotations
@@ -14,7 +14,8 @@ from pathlib import Path
 
 __all__ = ["SequenceError", "natural_key", "resolve_sequence"]
 
-MESH_SUFFIXES = (".obj", ".ply")
+#: The files a directory's frames are: what ``meshio.read_mesh`` reads.
+MESH_SUFFIXES = (".obj", ".ply", ".gltf", ".glb", ".drc")
 _PRINTF = re.compile(r"%(0?)(\d*)d")
 _GLOB_CHARS = re.compile(r"[*?\[]")
 
@@ -32,7 +33,7 @@ def natural_key(text: str) -> tuple:
 def resolve_sequence(spec: str | os.PathLike, start: int | None = None, count: int | None = None) -> list[Path]:
     """The frame files named by ``spec``, in order.
 
-    - directory: its .obj/.ply files in natural order;
+    - directory: its mesh files (``MESH_SUFFIXES``) in natural order;
     - glob pattern (``*``, ``?``, ``[``): the matching files in natural order;
     - printf pattern (one ``%d``/``%04d``): frames ``start``, ``start+1``, ...; with ``count``
       exactly that many (a missing one is an error), otherwise consecutive frames until the
@@ -54,7 +55,8 @@ def resolve_sequence(spec: str | os.PathLike, start: int | None = None, count: i
     if path.is_dir():
         files = [p for p in path.iterdir() if p.suffix.lower() in MESH_SUFFIXES and p.is_file()]
         if not files:
-            raise SequenceError(f"no .obj or .ply files in directory {path}")
+            raise SequenceError(f"no .obj or .ply files (nor .gltf, .glb or .drc) in directory {path}: "
+                                "give the folder that holds the frames, or a quoted glob or printf pattern")
         return _slice(sorted(files, key=natural_key), start, count, f"directory {path}")
     if _GLOB_CHARS.search(text):
         files = [Path(p) for p in glob.glob(text, recursive=True) if os.path.isfile(p)]
