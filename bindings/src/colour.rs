@@ -86,7 +86,7 @@ fn textured_distortion<'py>(
             "peak must be a positive finite number, not {peak}"
         )));
     }
-    py.allow_threads(|| crate::check_sampling(&reference.mesh, &decoded.mesh, &grid))?;
+    py.allow_threads(|| crate::check_sampling(&reference.mesh, &decoded.mesh, &grid, true))?;
     let d =
         py.allow_threads(|| metrics::textured_mse(&reference, &ref_tex, &decoded, &dec_tex, &grid));
     crate::check_measured(&[d.geometry.d1_mse, d.geometry.d2_mse])?;

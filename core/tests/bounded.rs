@@ -42,5 +42,17 @@ fn a_fan_of_collinear_faces_around_one_vertex_is_refused() {
     let n = 50_000u32;
     let p: Vec<[f64; 3]> = (0..n + 2).map(|_| [lcg(&mut seed), 0.0, 0.0]).collect();
     let m = Mesh::new(p, (0..n).map(|i| [0, i + 1, i + 2]).collect());
-    assert!(encode_error(&m).contains("share a few vertices"));
+    // Collinear, it has no area at all; lifted off the line, it is a fan that decimation
+    // would take minutes over.
+    assert!(encode_error(&m).contains("the mesh has no area"));
+    let lifted = Mesh::new(m.positions.iter().map(|p| [p[0], lcg(&mut seed), 0.0]).collect(), m.faces);
+    assert!(encode_error(&lifted).contains("share a few vertices"));
+}
+
+#[test]
+fn a_strip_of_collinear_faces_is_refused_at_once() {
+    // Decimated, it stacked thousands of base faces on a few grid points: 28 s at this size.
+    let n = 100_000u32;
+    let m = Mesh::new((0..n + 2).map(|i| [i as f64 / n as f64, 0.3, 0.7]).collect(), (0..n).map(|i| [i, i + 1, i + 2]).collect());
+    assert!(encode_error(&m).contains("every face is degenerate: the mesh has no area"));
 }

@@ -17,7 +17,7 @@ use crate::error::InputError;
 use crate::geom::bvh::Bvh;
 use crate::geom::limits;
 use crate::geom::mesh::{dot, sub, Mesh};
-use crate::geom::weld::weld;
+use crate::geom::weld::{surface_faces, weld};
 use crate::inter::anchor::{self, AnchorParams, ReferenceBase, Rigid};
 use crate::inter::{motion, refresh};
 use crate::inter::tracking::{self, Bindings};
@@ -62,6 +62,9 @@ pub struct FrameStats {
     pub base_faces: usize,
     pub output_vertices: usize,
     pub output_faces: usize,
+    /// Input faces left out for having no area or repeating another face
+    /// ([`crate::geom::weld`]).
+    pub dropped_faces: usize,
     /// Whether the input had the previous input's connectivity.
     pub same_topology: bool,
     /// Bytes the other candidate (intra or predicted) would have cost; 0 if it was not coded.
@@ -227,6 +230,11 @@ impl SequenceEncoder {
         &self.header
     }
 
+    /// The index of the frame that [`Self::encode`] codes next.
+    pub fn next_frame(&self) -> u32 {
+        self.frame
+    }
+
     /// Makes the next frame frame `index`, the first of a group (a multiple of the intra
     /// period), and forgets the references and the last intra frame. The first frame of a
     /// group is intra and reads neither, so from there on this encoder produces the units
@@ -252,12 +260,16 @@ impl SequenceEncoder {
         mesh.validate()?;
         limits::check_size(mesh)?;
         let welded = weld(mesh);
-        if welded.faces.is_empty() {
-            return Err(InputError("every face is degenerate once coincident vertices are merged".into()));
-        }
-        limits::check_valence(&welded)?;
         let h = &self.header;
-        let input = Mesh::new(welded.positions.iter().map(|&p| h.grid.to_grid(p)).collect(), welded.faces);
+        let (input, _) = surface_faces(Mesh::new(welded.positions.iter().map(|&p| h.grid.to_grid(p)).collect(), welded.faces));
+        if input.faces.is_empty() {
+            return Err(InputError(format!(
+                "every face is degenerate: the mesh has no area to code (each of its {} faces has corners that coincide \
+                 or lie on one line once coincident vertices are merged)",
+                mesh.faces.len()
+            )));
+        }
+        limits::check_valence(&input)?;
         let target = Bvh::new(&input.positions, &input.faces);
         let same_topology = self.references.last().is_some_and(|s| tracking::same_connectivity(&s.reference.input, &input));
         let (predicted, anchor_seconds) = self.best_predicted(&input, &target)?;
@@ -275,6 +287,7 @@ impl SequenceEncoder {
             base_faces: c.state.faces.len(),
             output_vertices: c.reconstruction.positions.len(),
             output_faces: c.reconstruction.faces.len(),
+            dropped_faces: mesh.faces.len() - input.faces.len(),
             same_topology,
             rejected_bytes,
             anchor_seconds,

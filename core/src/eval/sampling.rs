@@ -55,7 +55,29 @@ type SampleKey = [u32; 6];
 /// Faces with an out-of-range index or (near) zero area are skipped. A grid whose step is not a
 /// positive finite number gives an empty cloud. Deterministic and independent of thread count.
 pub fn sample_grid(positions: &[[f64; 3]], faces: &[[u32; 3]], grid: &SamplingGrid) -> PointCloud {
-    merge_positions(&raw_samples(positions, faces, grid, |_, _, _| ()))
+    merge_positions(&raw_samples(positions, faces, grid, Some(&first_copies(positions, faces)), |_, _, _| ()))
+}
+
+/// Which faces [`sample_grid`] rasterizes: all but those whose corners, in `f32` and rotated as
+/// [`fetch_triangle`] rotates them, repeat an earlier face's. A repetition casts the same rays
+/// and makes the same samples, which the deduplication merges, so leaving it out changes no
+/// point; a mesh of a million copies of one large face would otherwise cast a million times
+/// its rays. Faces with an index out of range are kept (they are skipped later).
+fn first_copies(positions: &[[f64; 3]], faces: &[[u32; 3]]) -> Vec<bool> {
+    let keys: Vec<Option<[u32; 9]>> = faces
+        .par_iter()
+        .map(|f| fetch_triangle(positions, f).map(|(t, _)| std::array::from_fn(|i| t[i / 3][i % 3].to_bits())))
+        .collect();
+    let mut order: Vec<u32> = (0..faces.len() as u32).collect();
+    order.par_sort_unstable_by_key(|&f| (keys[f as usize], f));
+    let mut keep = vec![true; faces.len()];
+    for pair in order.windows(2) {
+        let (a, b) = (&keys[pair[0] as usize], &keys[pair[1] as usize]);
+        if a.is_some() && a == b {
+            keep[pair[1] as usize] = false;
+        }
+    }
+    keep
 }
 
 /// [`sample_grid`] of `mesh` (the same points and normals, in the same order) together with each
@@ -72,7 +94,7 @@ pub fn sample_grid_coloured(
     texture: &Texture,
     grid: &SamplingGrid,
 ) -> (PointCloud, Vec<[u8; 3]>) {
-    let samples = raw_samples(&mesh.mesh.positions, &mesh.mesh.faces, grid, |face, first, w| {
+    let samples = raw_samples(&mesh.mesh.positions, &mesh.mesh.faces, grid, None, |face, first, w| {
         let colour = match uv_at(mesh, face, first, w) {
             Some(uv) => bilinear_f32(texture, uv),
             None => texture.texel(0, 0).map(f32::from),
@@ -84,14 +106,16 @@ pub fn sample_grid_coloured(
     (merge_positions(&samples), colours)
 }
 
-/// The sorted, deduplicated raw samples of `(positions, faces)` on `grid`, each carrying
-/// `payload(face index, rotation, barycentric weights)`: the weights are those of the corners of
-/// the triangle as [`fetch_triangle`] rotated it (rotated left by `rotation`), in `f32` as the
-/// ray test gives them. Samples equal in position, normal and payload count once.
+/// The sorted, deduplicated raw samples of `(positions, faces)` on `grid` (only of the faces
+/// that `keep` marks, when given), each carrying `payload(face index, rotation, barycentric
+/// weights)`: the weights are those of the corners of the triangle as [`fetch_triangle`]
+/// rotated it (rotated left by `rotation`), in `f32` as the ray test gives them. Samples equal
+/// in position, normal and payload count once.
 fn raw_samples<C, F>(
     positions: &[[f64; 3]],
     faces: &[[u32; 3]],
     grid: &SamplingGrid,
+    keep: Option<&[bool]>,
     payload: F,
 ) -> Vec<(SampleKey, C)>
 where
@@ -107,6 +131,9 @@ where
         .flat_map_iter(|(c, chunk)| {
             let mut out = Vec::new();
             for (i, face) in chunk.iter().enumerate() {
+                if keep.is_some_and(|k| !k[c * CHUNK + i]) {
+                    continue;
+                }
                 if let Some((tri, first)) = fetch_triangle(positions, face) {
                     rasterize(tri, &g, |key, w| out.push((key, payload(c * CHUNK + i, first, w))));
                 }
@@ -227,6 +254,14 @@ fn rasterize(tri: [[f32; 3]; 3], g: &GridF32, mut hit: impl FnMut(SampleKey, [f3
 /// Rays that [`sample_grid`] casts for `(positions, faces)` on `grid`, counted without casting
 /// them (each makes at most one raw sample): what sampling will cost in time and memory.
 pub fn ray_count(positions: &[[f64; 3]], faces: &[[u32; 3]], grid: &SamplingGrid) -> u64 {
+    let keep = first_copies(positions, faces);
+    let kept: Vec<[u32; 3]> = faces.iter().zip(&keep).filter(|(_, &k)| k).map(|(f, _)| *f).collect();
+    ray_count_coloured(positions, &kept, grid)
+}
+
+/// Rays that [`sample_grid_coloured`] casts for a mesh of these `positions` and `faces` on `grid`:
+/// one set for every face, repetitions included (their colours may differ).
+pub fn ray_count_coloured(positions: &[[f64; 3]], faces: &[[u32; 3]], grid: &SamplingGrid) -> u64 {
     let Some(g) = GridF32::new(grid) else { return 0 };
     let rays = |face: &[u32; 3]| {
         let Some((tri, _)) = fetch_triangle(positions, face) else { return 0 };
@@ -394,6 +429,26 @@ pub(crate) mod tests {
         assert_eq!((g.step * fp).fract(), 0.0);
         assert!(g.step >= 2.0 / 1023.0 && g.step < 2.0 / 1023.0 + 2.0 / fp);
         assert_eq!(square_grid().step, 6554.0 / fp);
+    }
+
+    #[test]
+    fn repeated_faces_are_sampled_once_and_their_rays_counted_once() {
+        let (mut p, f) = square(0.0);
+        let grid = square_grid();
+        let once = sample_grid(&p, &f, &grid);
+        // Copies of the first face (one by other indices at the same places, one rotated),
+        // and its flipped twin, whose normal differs: that one does count.
+        p.extend([p[0], p[1], p[3]]);
+        let mut repeated = f.clone();
+        for _ in 0..1000 {
+            repeated.extend([f[0], [4, 5, 6], [1, 3, 0]]);
+        }
+        assert_eq!(sample_grid(&p, &repeated, &grid), once);
+        assert_eq!(ray_count(&p, &repeated, &grid), ray_count(&p, &f, &grid));
+        assert_eq!(ray_count_coloured(&p, &repeated, &grid), 3001 * ray_count(&p, &f[..1], &grid) + ray_count(&p, &f[1..], &grid));
+        repeated.push([0, 3, 1]);
+        assert_eq!(ray_count(&p, &repeated, &grid), ray_count(&p, &f, &grid) + ray_count(&p, &f[..1], &grid));
+        assert_ne!(sample_grid(&p, &repeated, &grid), once);
     }
 
     #[test]
