@@ -78,6 +78,7 @@ const OPTIONS: &[Opt] = &[
     field!("refit", config.refit),
     field!("fold_repair", config.fold_repair),
     field!("rigid_align", config.rigid_align),
+    field!("motion_parts", config.motion_parts),
     field!("refresh", config.refresh),
     field!("references", config.references),
     field!("intra_reference", config.intra_reference),

@@ -82,6 +82,9 @@ pub struct EncoderConfig {
     /// Move each part of the reference base rigidly onto the input before the anchor's
     /// matching (`anchor::rigid`; not a stage of the paper).
     pub rigid_align: bool,
+    /// ... and cut each connected part into the parts that move apart inside it, found by
+    /// their rigid fits (`anchor::parts`; not a stage of the paper), with `rigid_align`.
+    pub motion_parts: bool,
     /// Code the regions an anchored base fits worst intra inside the predicted frame
     /// (`inter::refresh`; not a stage of the paper).
     pub refresh: bool,
@@ -111,6 +114,7 @@ impl Default for EncoderConfig {
             lifting: LiftingChoice::PerValence,
             fold_repair: true,
             rigid_align: true,
+            motion_parts: false,
             refresh: true,
             references: 1,
             intra_reference: true,
@@ -123,20 +127,20 @@ impl EncoderConfig {
     pub fn validate(&self) -> Result<(), InputError> {
         let err = |m: String| Err(InputError(m));
         if !quantize::QP_RANGE.contains(&self.qp) {
-            return err(format!("qp {} out of range {:?}", self.qp, quantize::QP_RANGE));
+            return err(format!("qp {} is out of range: it must be from {} to {}", self.qp, quantize::QP_RANGE.start(), quantize::QP_RANGE.end()));
         }
         if !(self.base_ratio() > 0.0 && self.base_ratio() <= 1.0) {
-            return err(format!("base ratio {} must be in (0, 1]", self.base_ratio()));
+            return err(format!("base ratio {} must be above 0 and at most 1", self.base_ratio()));
         }
         if self.subdiv_iterations > bitstream::MAX_SUBDIV {
             return err(format!("subdivision iterations {} (at most {})", self.subdiv_iterations, bitstream::MAX_SUBDIV));
         }
         self.scheme.schemes(self.subdiv_iterations).map_err(InputError)?;
         if !BITS_RANGE.contains(&self.bits) {
-            return err(format!("position bits {} out of range {:?}", self.bits, BITS_RANGE));
+            return err(format!("position bits {} is out of range: it must be from {} to {}", self.bits, BITS_RANGE.start(), BITS_RANGE.end()));
         }
         if !BITS_RANGE.contains(&self.base_bits) || self.base_bits > self.bits {
-            return err(format!("base mesh position bits {} must be in {}..={}", self.base_bits, BITS_RANGE.start(), self.bits));
+            return err(format!("base mesh position bits {} must be from {} to {} (the position bits)", self.base_bits, BITS_RANGE.start(), self.bits));
         }
         if self.intra_period == 0 {
             return err("intra period must be at least 1".into());
@@ -147,7 +151,7 @@ impl EncoderConfig {
             }
         }
         if !(1..=MAX_REFERENCES).contains(&self.references) {
-            return err(format!("references {} out of range 1..={MAX_REFERENCES}", self.references));
+            return err(format!("references {} is out of range: it must be from 1 to {MAX_REFERENCES}", self.references));
         }
         if !(self.rd_slope_db.is_finite() && self.rd_slope_db >= 0.0) {
             return err(format!("rd slope {} must be finite and non-negative", self.rd_slope_db));

@@ -18,7 +18,7 @@ use crate::geom::bvh::Bvh;
 use crate::geom::limits;
 use crate::geom::mesh::{dot, sub, Mesh};
 use crate::geom::weld::{surface_faces, weld};
-use crate::inter::anchor::{self, AnchorParams, ReferenceBase, Rigid};
+use crate::inter::anchor::{self, AnchorParams, PartMotions, ReferenceBase};
 use crate::inter::{motion, refresh};
 use crate::inter::tracking::{self, Bindings};
 use crate::model::{base_in_grid_units, base_in_world_units, face_allowance, subdivided_base, FrameModel, FrameState};
@@ -93,7 +93,7 @@ enum Motion {
     /// Tracked on an input of constant connectivity: the base vertices' places on the input.
     Tracked(Bindings),
     /// By the anchor mesh, with the rigid motion of each part when it was aligned.
-    Anchor(Option<Vec<Rigid>>),
+    Anchor(Option<PartMotions>),
 }
 
 impl Motion {
@@ -391,9 +391,9 @@ impl SequenceEncoder {
             (tracking::bound_positions(&bindings, input, &reference.positions), Motion::Tracked(bindings))
         } else {
             let stages = self.config.inter?;
-            let params = AnchorParams { stages, rigid_align: self.config.rigid_align, repair_folds: self.config.fold_repair };
+            let params = AnchorParams { stages, rigid_align: self.config.rigid_align, motion_parts: self.config.motion_parts, repair_folds: self.config.fold_repair };
             let motions = match &r.motion {
-                Some(Motion::Anchor(m)) => m.as_deref(),
+                Some(Motion::Anchor(m)) => m.as_ref(),
                 _ => None,
             };
             let base = ReferenceBase { mesh: &reference, surface: Some(&r.surface), motions };

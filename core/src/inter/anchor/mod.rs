@@ -13,6 +13,7 @@
 
 pub mod coarse;
 pub mod folds;
+pub mod parts;
 pub mod qem;
 pub mod rigid;
 
@@ -20,7 +21,7 @@ use crate::geom::bvh::Bvh;
 use crate::geom::mesh::{add, sub, Mesh};
 use coarse::NearestVertex;
 pub use folds::FoldStats;
-pub use rigid::Rigid;
+pub use rigid::{PartMotions, Rigid};
 
 /// The stages that make the anchor mesh: the paper's ablation switches, and our variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -56,6 +57,9 @@ pub struct AnchorParams {
     pub stages: AnchorStages,
     /// Move each part of the reference rigidly onto the input first ([`rigid`]).
     pub rigid_align: bool,
+    /// ... and cut each connected part into the parts that move apart inside it
+    /// ([`parts`]), with `rigid_align`.
+    pub motion_parts: bool,
     /// Repair folded anchor triangles ([`folds`]).
     pub repair_folds: bool,
 }
@@ -71,7 +75,7 @@ pub struct ReferenceBase<'a> {
     /// offset survives it.
     pub surface: Option<&'a Bvh>,
     /// The rigid motion of each part in the reference frame, which predicts this frame's.
-    pub motions: Option<&'a [Rigid]>,
+    pub motions: Option<&'a PartMotions>,
 }
 
 #[derive(Debug, Clone, Default)]
@@ -83,7 +87,7 @@ pub struct Anchor {
     /// One position per reference vertex, in the input's units.
     pub positions: Vec<[f64; 3]>,
     /// The rigid motion of each part of the reference (`rigid::parts`), with `rigid_align`.
-    pub motions: Option<Vec<Rigid>>,
+    pub motions: Option<PartMotions>,
     pub stats: AnchorStats,
 }
 
@@ -97,14 +101,14 @@ pub fn anchor_mesh(reference: &ReferenceBase, input: &Mesh, input_bvh: &Bvh, par
     };
     let on_surface: Vec<[f64; 3]> = base.positions.iter().zip(&offsets).map(|(&p, &o)| sub(p, o)).collect();
     let mut start = Mesh::new(on_surface, base.faces.clone());
-    let mut aligned = params.rigid_align.then(|| rigid::align_parts(&start, input_bvh, reference.motions));
+    let mut aligned = params.rigid_align.then(|| rigid::align_parts(&start, input_bvh, reference.motions, params.motion_parts));
     if let Some(a) = &mut aligned {
         start.positions = std::mem::take(&mut a.positions);
     }
     let mut positions = matched(&start, input, input_bvh, params.stages);
     let folds = if params.repair_folds { folds::repair_folds(&start, &mut positions, input_bvh) } else { FoldStats::default() };
     for (v, (p, &o)) in positions.iter_mut().zip(&offsets).enumerate() {
-        let o = aligned.as_ref().map_or(o, |a| a.motions[a.parts[v] as usize].rotate(o));
+        let o = aligned.as_ref().map_or(o, |a| a.motions.of(v).rotate(o));
         *p = add(*p, o);
     }
     Anchor { positions, motions: aligned.map(|a| a.motions), stats: AnchorStats { folds } }
@@ -142,7 +146,7 @@ mod tests {
     fn anchor(reference: &Mesh, input: &Mesh, stages: AnchorStages) -> Vec<[f64; 3]> {
         let bvh = Bvh::new(&input.positions, &input.faces);
         let base = ReferenceBase { mesh: reference, surface: None, motions: None };
-        anchor_mesh(&base, input, &bvh, &AnchorParams { stages, rigid_align: false, repair_folds: false }).positions
+        anchor_mesh(&base, input, &bvh, &AnchorParams { stages, rigid_align: false, motion_parts: false, repair_folds: false }).positions
     }
 
     #[test]

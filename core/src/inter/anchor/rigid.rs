@@ -101,40 +101,75 @@ pub fn parts(reference: &Mesh) -> Vec<u32> {
     label
 }
 
+/// The parts of a reference base and how each moved.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PartMotions {
+    /// The part of each vertex: its connected piece ([`parts`]), or with `by_motion` a part
+    /// found inside a piece ([`super::parts`]), numbered after the pieces.
+    pub parts: Vec<u32>,
+    /// The motion of each part; the first `pieces` are the pieces' own motions.
+    pub motions: Vec<Rigid>,
+    /// The number of connected pieces.
+    pub pieces: usize,
+}
+
+impl PartMotions {
+    /// The motion of vertex `v`.
+    pub fn of(&self, v: usize) -> Rigid {
+        self.motions[self.parts[v] as usize]
+    }
+}
+
 /// A reference moved part by part.
 pub struct Aligned {
     pub positions: Vec<[f64; 3]>,
-    /// The part of each vertex ([`parts`]).
-    pub parts: Vec<u32>,
-    /// The motion of each part.
-    pub motions: Vec<Rigid>,
+    pub motions: PartMotions,
 }
 
-/// The rigid motion of each part of `reference` onto `input`, tried from no motion and from
-/// `previous[part]` when given (ignored unless it has one motion per part), and the
-/// reference positions moved by them.
-pub fn align_parts(reference: &Mesh, input: &Bvh, previous: Option<&[Rigid]>) -> Aligned {
+/// The rigid motion of each connected piece of `reference` onto `input`, tried from no
+/// motion and from the piece's motion in `previous` when given (ignored unless it has as
+/// many pieces), and the reference positions moved by them. With `by_motion`, each piece is
+/// also cut into the parts that move apart inside it ([`super::parts::motion_parts`]), whose
+/// searches start from `previous`'s motion of the same vertex (ignored unless it has one
+/// part per vertex of `reference`).
+pub fn align_parts(reference: &Mesh, input: &Bvh, previous: Option<&PartMotions>, by_motion: bool) -> Aligned {
     let label = parts(reference);
     let count = label.iter().map(|&l| l as usize + 1).max().unwrap_or(0);
-    let mut members: Vec<Vec<[f64; 3]>> = vec![Vec::new(); count];
-    for (&l, &p) in label.iter().zip(&reference.positions) {
-        members[l as usize].push(p);
+    let mut members: Vec<Vec<usize>> = vec![Vec::new(); count];
+    for (v, &l) in label.iter().enumerate() {
+        members[l as usize].push(v);
     }
-    let motions: Vec<Rigid> = members
+    let points = |m: &[usize]| m.iter().map(|&v| reference.positions[v]).collect::<Vec<_>>();
+    let whole: Vec<Rigid> = members
         .iter()
         .enumerate()
-        .map(|(i, points)| {
-            let predicted = previous.filter(|m| m.len() == count).map(|m| m[i]);
-            if points.len() < MIN_PART || input.is_empty() { Rigid::IDENTITY } else { part_motion(points, input, predicted) }
+        .map(|(i, m)| {
+            let predicted = previous.filter(|p| p.pieces == count).map(|p| p.motions[i]);
+            if m.len() < MIN_PART || input.is_empty() { Rigid::IDENTITY } else { part_motion(&points(m), input, predicted) }
         })
         .collect();
-    let positions = label.iter().zip(&reference.positions).map(|(&l, &p)| motions[l as usize].apply(p)).collect();
-    Aligned { positions, parts: label, motions }
+    let mut motions = PartMotions { parts: label, motions: whole.clone(), pieces: count };
+    if by_motion && !input.is_empty() {
+        let per_vertex = previous.filter(|p| p.parts.len() == reference.positions.len());
+        for (i, m) in members.iter().enumerate() {
+            let predicted = |k: usize| per_vertex.map(|p| p.of(m[k]));
+            let faces = super::parts::piece_faces(reference, m);
+            if let Some((sub, extra)) = super::parts::motion_parts(&points(m), &faces, input, whole[i], &predicted) {
+                let first = motions.motions.len() as u32 - 1;
+                for (&v, &s) in m.iter().zip(&sub) {
+                    motions.parts[v] = if s == 0 { i as u32 } else { first + s };
+                }
+                motions.motions.extend(&extra[1..]);
+            }
+        }
+    }
+    let positions = (0..reference.positions.len()).map(|v| motions.of(v).apply(reference.positions[v])).collect();
+    Aligned { positions, motions }
 }
 
 /// The best of ICP from no motion and from `predicted` (or, without one, from the best
 /// screened turn), or no motion if none lies [`GAIN`] closer.
-fn part_motion(points: &[[f64; 3]], input: &Bvh, predicted: Option<Rigid>) -> Rigid {
+pub(super) fn part_motion(points: &[[f64; 3]], input: &Bvh, predicted: Option<Rigid>) -> Rigid {
     let mut best = (trimmed_cost(points, input, &Rigid::IDENTITY) * GAIN, Rigid::IDENTITY);
     let turned = predicted.is_none().then(|| screened_turn(points, input));
     let sample = every_kth(points, ROUND_SAMPLES);
@@ -146,6 +181,12 @@ fn part_motion(points: &[[f64; 3]], input: &Bvh, predicted: Option<Rigid>) -> Ri
         }
     }
     best.1
+}
+
+/// ICP from `start` over (a sample of) `points`: a motion found on part of them, fitted to all.
+pub(super) fn refined_motion(points: &[[f64; 3]], input: &Bvh, start: Rigid) -> Rigid {
+    let fitted = icp(&every_kth(points, ROUND_SAMPLES), input, start, ROUNDS);
+    if trimmed_cost(points, input, &fitted) < trimmed_cost(points, input, &start) { fitted } else { start }
 }
 
 /// The turns tried when a part has no previous motion, in degrees about each of its principal
@@ -183,7 +224,7 @@ fn every_kth(points: &[[f64; 3]], most: usize) -> Vec<[f64; 3]> {
 
 /// Mean squared distance to the surface of the [`KEEP`] share of the moved points nearest
 /// to it: what ICP lowers, measured the same way for every candidate.
-fn trimmed_cost(points: &[[f64; 3]], input: &Bvh, motion: &Rigid) -> f64 {
+pub(super) fn trimmed_cost(points: &[[f64; 3]], input: &Bvh, motion: &Rigid) -> f64 {
     let d2: Vec<f64> = points.par_iter().map(|&p| input.closest_point(motion.apply(p)).map_or(0.0, |c| c.dist2)).collect();
     let limit = kept_limit(&d2);
     let kept: Vec<f64> = d2.into_iter().filter(|&d| d <= limit).collect();
@@ -312,9 +353,9 @@ mod tests {
         // A small turn and shift: ICP from no motion finds it.
         let input = toothed(8, &turn_z(0.05, [0.1, 0.05, 0.0]));
         let bvh = Bvh::new(&input.positions, &input.faces);
-        let a = align_parts(&reference, &bvh, None);
+        let a = align_parts(&reference, &bvh, None, false);
         let before = trimmed_cost(&reference.positions, &bvh, &Rigid::IDENTITY);
-        let after = trimmed_cost(&reference.positions, &bvh, &a.motions[0]);
+        let after = trimmed_cost(&reference.positions, &bvh, &a.motions.motions[0]);
         assert!(after < before * 0.01, "before {before} after {after}");
         assert_eq!(a.positions.len(), reference.positions.len());
     }
@@ -331,11 +372,11 @@ mod tests {
         let turn = turn_z(1.2, [0.0; 3]);
         let (reference, input) = (oval(&Rigid::IDENTITY), oval(&turn));
         let bvh = Bvh::new(&input.positions, &input.faces);
-        let fits = |previous: Option<&[Rigid]>| {
-            let a = align_parts(&reference, &bvh, previous);
-            trimmed_cost(&reference.positions, &bvh, &a.motions[0])
+        let fits = |previous: Option<&PartMotions>| {
+            let a = align_parts(&reference, &bvh, previous, false);
+            trimmed_cost(&reference.positions, &bvh, &a.motions.motions[0])
         };
-        let (alone, predicted) = (fits(None), fits(Some(&[turn_z(1.15, [0.0; 3])])));
+        let (alone, predicted) = (fits(None), fits(Some(&PartMotions { parts: vec![0; reference.positions.len()], motions: vec![turn_z(1.15, [0.0; 3])], pieces: 1 })));
         assert!(predicted < alone * 0.1 && predicted < 1e-3, "alone {alone} predicted {predicted}");
     }
 
@@ -346,7 +387,7 @@ mod tests {
         let reference = toothed(12, &Rigid::IDENTITY);
         let input = toothed(12, &turn_z(0.09, [0.0; 3]));
         let bvh = Bvh::new(&input.positions, &input.faces);
-        let r = align_parts(&reference, &bvh, None).motions[0].rotation;
+        let r = align_parts(&reference, &bvh, None, false).motions.motions[0].rotation;
         let angle = r[1][0].atan2(r[0][0]);
         assert!((angle - 0.09).abs() < 0.01, "{angle}");
     }
@@ -358,7 +399,7 @@ mod tests {
         assert!(reference.positions.len() > ROUND_SAMPLES);
         let input = toothed(24, &turn_z(0.06, [0.05, 0.0, 0.02]));
         let bvh = Bvh::new(&input.positions, &input.faces);
-        let m = align_parts(&reference, &bvh, None).motions[0];
+        let m = align_parts(&reference, &bvh, None, false).motions.motions[0];
         let angle = m.rotation[1][0].atan2(m.rotation[0][0]);
         assert!((angle - 0.06).abs() < 0.01, "{angle}");
         assert!(trimmed_cost(&reference.positions, &bvh, &m) < 0.01 * trimmed_cost(&reference.positions, &bvh, &Rigid::IDENTITY));
@@ -368,7 +409,7 @@ mod tests {
     fn a_still_part_keeps_no_motion() {
         let m = toothed(8, &Rigid::IDENTITY);
         let bvh = Bvh::new(&m.positions, &m.faces);
-        for (a, b) in align_parts(&m, &bvh, None).positions.iter().zip(&m.positions) {
+        for (a, b) in align_parts(&m, &bvh, None, false).positions.iter().zip(&m.positions) {
             assert!(sub(*a, *b).iter().all(|x| x.abs() < 1e-9));
         }
     }
