@@ -102,9 +102,9 @@ def test_bad_parallel_options_are_refused(tmp_path, frames_dir):
     p = run("encode", frames_dir, "-o", tmp_path / "s.dmsh", "--jobs", "0", check=False)
     assert p.returncode == 1 and "--jobs must be at least 1 or auto, got 0" in p.stderr
     p = run("encode", frames_dir, "-o", tmp_path / "s.dmsh", "--jobs", "all", check=False)
-    assert p.returncode == 2 and "expected a number of processes or auto, got 'all'" in p.stderr
+    assert p.returncode == 1 and "expected a number of processes or auto, got 'all'" in p.stderr  # README: status 1
     p = run("encode", frames_dir, "-o", tmp_path / "s.dmsh", "--jobs", "2", "--ray", "auto", check=False)
-    assert p.returncode == 2 and "not allowed with argument" in p.stderr
+    assert p.returncode == 1 and "not allowed with argument" in p.stderr
     assert not list(tmp_path.iterdir())
     with pytest.raises(ValueError, match="jobs must be a positive integer"):
         api.encode_frames(wobbly_sequence(2, 8, 8), jobs=0)

@@ -134,7 +134,7 @@ fn render<'py>(
     for (name, side) in [("width", width), ("height", height)] {
         if !(1..=MAX_IMAGE_SIDE).contains(&side) {
             return Err(PyValueError::new_err(format!(
-                "{name} must be in 1..={MAX_IMAGE_SIDE}, not {side}"
+                "{name} must be from 1 to {MAX_IMAGE_SIDE}, not {side}"
             )));
         }
     }
@@ -251,7 +251,7 @@ fn uv_faces_of(
             let t = [r[0], r[1], r[2]];
             if t.iter().any(|&x| x < 0 || x as u64 >= uv_count as u64) {
                 return Err(PyValueError::new_err(format!(
-                    "uv_faces row {i} refers to a UV outside 0..{uv_count}"
+                    "uv_faces row {i} refers to a UV that does not exist (there are {uv_count}, numbered from 0)"
                 )));
             }
             Ok(t.map(|x| x as u32))
@@ -276,12 +276,12 @@ pub(crate) fn texture_of(a: &PyReadonlyArray3<u8>) -> PyResult<Texture> {
 /// mmetric's sampling grid over a finite, non-inverted box.
 pub(crate) fn grid_of(box_min: [f64; 3], box_max: [f64; 3], grid_size: u32) -> PyResult<SamplingGrid> {
     if !(2..=MAX_GRID_SIZE).contains(&grid_size) {
-        return Err(PyValueError::new_err(format!("grid size must be in 2..={MAX_GRID_SIZE}, not {grid_size}")));
+        return Err(PyValueError::new_err(format!("grid size must be from 2 to {MAX_GRID_SIZE}, not {grid_size}")));
     }
     let finite = box_min.iter().chain(&box_max).all(|v| v.is_finite());
     if !finite || (0..3).any(|k| box_min[k] > box_max[k]) {
         return Err(PyValueError::new_err(format!(
-            "box must be finite with box_min <= box_max, not {box_min:?}..{box_max:?}"
+            "box must be finite with box_min <= box_max, not from {box_min:?} to {box_max:?}"
         )));
     }
     Ok(SamplingGrid::over_box(box_min, box_max, grid_size))

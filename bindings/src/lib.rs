@@ -52,7 +52,7 @@ pub(crate) fn faces_of(a: &PyReadonlyArray2<i64>, vertex_count: usize) -> PyResu
     for (i, r) in v.rows().into_iter().enumerate() {
         let f = [r[0], r[1], r[2]];
         if f.iter().any(|&x| x < 0 || x as u64 >= vertex_count as u64) {
-            return Err(PyValueError::new_err(format!("face {i} refers to a vertex outside 0..{vertex_count}")));
+            return Err(PyValueError::new_err(format!("face {i} refers to a vertex that does not exist (there are {vertex_count}, numbered from 0)")));
         }
         out.push(f.map(|x| x as u32));
     }

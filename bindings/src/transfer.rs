@@ -48,7 +48,7 @@ fn transfer_texture<'py>(
 ) -> PyResult<(Bound<'py, PyArray3<u8>>, f64)> {
     for (name, side) in [("width", width), ("height", height)] {
         if !(1..=MAX_SIDE).contains(&side) {
-            return Err(PyValueError::new_err(format!("{name} must be in 1..={MAX_SIDE}, not {side}")));
+            return Err(PyValueError::new_err(format!("{name} must be from 1 to {MAX_SIDE}, not {side}")));
         }
     }
     let named = |what: &'static str| move |e: PyErr| PyValueError::new_err(format!("{what}: {}", e.value(py)));

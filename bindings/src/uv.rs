@@ -125,7 +125,7 @@ fn check_bits(bits: u32) -> PyResult<()> {
     if (1..=MAX_UV_BITS).contains(&bits) {
         Ok(())
     } else {
-        Err(PyValueError::new_err(format!("bits must be in 1..={MAX_UV_BITS}, not {bits}")))
+        Err(PyValueError::new_err(format!("bits must be from 1 to {MAX_UV_BITS}, not {bits}")))
     }
 }
 
@@ -141,7 +141,7 @@ fn uv_faces_of(a: &PyReadonlyArray2<i64>, rows: usize, uv_count: usize) -> PyRes
         .map(|(i, r)| {
             let f = [r[0], r[1], r[2]];
             if f.iter().any(|&x| x < 0 || x as u64 >= uv_count as u64) {
-                return Err(PyValueError::new_err(format!("uv_faces row {i} refers to a UV outside 0..{uv_count}")));
+                return Err(PyValueError::new_err(format!("uv_faces row {i} refers to a UV that does not exist (there are {uv_count}, numbered from 0)")));
             }
             Ok(f.map(|x| x as u32))
         })

@@ -11,6 +11,10 @@ from pathlib import Path
 
 # The API, numpy and the file readers are imported by the commands that use them:
 # `dynmesh decode` needs none of them, and importing them would cost it more than decoding.
+from .cli_args import (EXIT_ERROR, EXIT_INTERRUPTED, EXIT_PIPE_CLOSED, EXIT_STATUS_HELP, MAX_GRID_SIZE, Parser,
+                       common_args, grid_size, non_negative, parallel_args, parse, sequence_args)
+from .cli_output import Progress, frame_text, metrics_text, run_text
+from .cli_paths import check_decode_directory, check_output_directory, check_output_file, remove_stale_frames
 from .defaults import ENCODER, INTER_MODES, LIFTINGS, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS, base_ratio_rule, texture_qp_rule
 from .io import StagedDirectory, mesh_inputs, refuse_inputs, resolve_sequence
 
@@ -19,40 +23,21 @@ class CliError(Exception):
     """An error to report to the user, without a traceback."""
 
 
-class _Silent:
-    """The progress bar of a quiet command."""
-
-    def __enter__(self) -> _Silent:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        pass
-
-    def update(self, n: int = 1) -> None:
-        pass
-
-    def set_postfix_str(self, s: str = "") -> None:
-        pass
+def _progress(a, total: int, desc: str, quiet: bool | None = None, **kwargs) -> Progress:
+    """Progress of command ``a`` on stderr: a bar on a terminal, one line per frame
+    otherwise, nothing with -q (``quiet`` overrides)."""
+    return Progress(total, desc, command=a.command, quiet=a.quiet if quiet is None else quiet, **kwargs)
 
 
-def _progress(total: int, desc: str, quiet: bool):
-    if quiet:
-        return _Silent()
-    from tqdm import tqdm  # a fifth of a second to import: only commands that show progress pay it
-
-    return tqdm(total=total, desc=desc, unit="frame", disable=quiet or None, file=sys.stderr, leave=False)
-
-
-def _read_sequence(spec: str, start: int | None, count: int | None, quiet: bool) -> tuple[list[Path], list]:
+def _read_meshes(a, paths: list[Path], desc: str = "reading") -> list:
     from .io import read_mesh
 
-    paths = resolve_sequence(spec, start, count)
-    with _progress(len(paths), "reading", quiet) as bar:
+    with _progress(a, len(paths), desc, per_item_lines=False) as bar:
         meshes = []
         for p in paths:
             meshes.append(read_mesh(p))
-            bar.update()
-    return paths, meshes
+            bar.step()
+    return meshes
 
 
 def _table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
@@ -70,7 +55,7 @@ def _encoder_options(a) -> dict:
     return {**options, "texture": "auto" if a.texture is None else a.texture}
 
 
-def _scan_sequence(paths: list[Path], quiet: bool) -> tuple[np.ndarray, np.ndarray, list[Path], list[bool]]:
+def _scan_sequence(a, paths: list[Path]) -> tuple[np.ndarray, np.ndarray, list[Path], list[bool]]:
     """First pass over the frames, one in memory at a time: the sequence box, the texture
     files they use, and which frames are textured."""
     import numpy as np
@@ -79,7 +64,7 @@ def _scan_sequence(paths: list[Path], quiet: bool) -> tuple[np.ndarray, np.ndarr
     from .io import read_mesh
 
     lo, hi, textures, textured = np.full(3, np.inf), np.full(3, -np.inf), [], []
-    with _progress(len(paths), "reading", quiet) as bar:
+    with _progress(a, len(paths), "reading", per_item_lines=False) as bar:
         for i, p in enumerate(paths):
             m = read_mesh(p)
             try:
@@ -89,7 +74,7 @@ def _scan_sequence(paths: list[Path], quiet: bool) -> tuple[np.ndarray, np.ndarr
             lo, hi = np.minimum(lo, m_lo), np.maximum(hi, m_hi)
             textures += mesh_inputs([], [m])
             textured.append(api._has_texture(m))
-            bar.update()
+            bar.step()
     return lo, hi, textures, textured
 
 
@@ -100,24 +85,27 @@ def cmd_encode(a) -> dict:
 
     _check_jobs(a)
     paths = resolve_sequence(a.input, a.start, a.count)
-    refuse_inputs(a.output, paths)
-    lo, hi, textures, textured = _scan_sequence(paths, a.quiet)
-    refuse_inputs(a.output, textures)
+    # Before any frame is read: where the stream goes, and the options.
+    check_output_file(a.output, paths)
     options = _encoder_options(a)
     texture_option = options.pop("texture")
+    _check_encoder_options(options, len(paths))
+    lo, hi, textures, textured = _scan_sequence(a, paths)
+    refuse_inputs(a.output, textures)
     if texture_option is True and not all(textured):
         raise ValueError(f"frame {textured.index(False)}: texture coding asks for UVs and a texture image on every frame")
     use_texture = all(textured) if texture_option == "auto" else texture_option
     # With a Ray cluster its CPUs are the workers: no local processes.
     jobs = 1 if a.ray is not None else _encode_jobs(a.jobs, len(paths), options["intra_period"])
-    with _progress(len(paths), "encoding", a.quiet) as bar:
+    with _progress(a, len(paths), "encoding") as bar:
+        on_frame = lambda i, stats: bar.step(frame_text(i, stats))  # noqa: E731
         if jobs == 1 and a.ray is None:
-            result = api.encode_frames((parallel.read_again(p) for p in paths), on_frame=lambda i, s: bar.update(),
+            result = api.encode_frames((parallel.read_again(p) for p in paths), on_frame=on_frame,
                                        texture=use_texture, sequence=(len(paths), lo, hi), **options)
             api.write_bytes_atomic(a.output, result.data)
         else:  # the workers read the frames; the stream is written as their groups come
             result = parallel.encode_to_file(a.output, paths, sequence=(len(paths), lo, hi), texture=use_texture,
-                                             jobs=jobs, ray=a.ray, on_frame=lambda i, s: bar.update(), **options)
+                                             jobs=jobs, ray=a.ray, on_frame=on_frame, **options)
     size = Path(a.output).stat().st_size
     frames = [{"frame": i, "input": str(p), **s} for i, (p, s) in enumerate(zip(paths, result.frames))]
     summary = {"output": str(a.output), "bytes": size, "texture_bytes": result.texture_bytes,
@@ -137,6 +125,15 @@ def cmd_encode(a) -> dict:
     return summary
 
 
+def _check_encoder_options(options: dict, count: int) -> None:
+    """Raises ValueError for an option the encoder refuses, before any frame is read: the
+    encoder is made for a unit box (its options are checked as it is made)."""
+    from . import api
+
+    geometry, _ = api._split_options(options)  # the texture options are checked here
+    api._encoder(count, [0.0, 0.0, 0.0], [1.0, 1.0, 1.0], geometry)
+
+
 def cmd_decode(a) -> dict:
     from . import _core
 
@@ -154,17 +151,20 @@ def cmd_decode(a) -> dict:
         frame, offset, _, reason = units[0]
         raise CliError(f"{a.input}: frame {frame}, byte offset {offset}: {reason} "
                        f"({len(units)} damaged frame(s); --skip-damaged decodes the others)")
+    if a.output is not None:  # before any frame is decoded
+        check_decode_directory(a.output, a.input, a.force)
     # Frames without textures, as OBJ or PLY, are decoded and written by the core in one call.
     by_core = a.format in ("obj", "ply") and not _textured(stream)
     written, damaged, hashes = [], [], []
     start = time.perf_counter()
     with contextlib.ExitStack() as stack:
         out = stack.enter_context(_staged_or_none(a.output))
-        bar = stack.enter_context(_progress(n, "decoding", a.quiet or (a.hash and not a.json)))
+        # --hash prints a line per frame on stdout: that is its progress.
+        bar = stack.enter_context(_progress(a, n, "decoding", a.quiet or (a.hash and not a.json)))
         # Closed first on an error, so that no frame is still being written as the staged
         # directory is removed.
         frames = stack.enter_context(contextlib.closing(
-            _decoded_by_core(data, a, out, bar) if by_core else _decoded_by_api(data, a, out, bar)))
+            _decoded_by_core(data, a, out, bar) if by_core else _decoded_by_api(data, a, out, bar, stream)))
         for i, digest, failure in frames:
             if failure is not None:
                 if not a.skip_damaged:
@@ -185,7 +185,10 @@ def cmd_decode(a) -> dict:
             for extra in (".mtl", ".png"):  # textured frames' companions, beside them
                 for w in written:
                     refuse_inputs(Path(w).with_suffix(extra), [a.input])
+            new = os.listdir(out.stage)
             out.commit()
+            if a.force:  # the frames of a previous decode that these did not replace
+                remove_stale_frames(a.output, new)
     seconds = time.perf_counter() - start
     if not a.json and a.output is not None and not a.hash:
         print(f"decoded {len(written)} frames into {a.output} in {seconds:.2f} s")
@@ -215,7 +218,7 @@ def _decoded_by_core(data: bytes, a, out, bar):
     error writing a frame is raised."""
     from . import _core
 
-    on_frame = None if isinstance(bar, _Silent) else bar.update
+    on_frame = None if bar.off else bar.step  # called with no argument, as frames are done (in any order)
     results = _core.decode_to_files(data, None if out is None else str(out.stage), a.format, a.lod,
                                     a.skip_damaged, a.hash, on_frame)
     for i, digest, error in results:
@@ -224,7 +227,7 @@ def _decoded_by_core(data: bytes, a, out, bar):
         yield i, digest, None if error is None else (error.args[2], error.args[0])
 
 
-def _decoded_by_api(data: bytes, a, out, bar):
+def _decoded_by_api(data: bytes, a, out, bar, stream):
     """As ``_decoded_by_core``, through ``dynmesh.api`` (textured frames, glTF). Each frame
     is handed to a writer thread, which writes it into ``out`` while the next frame is
     decoded; an error writing a frame is raised by the time the generator ends, which is
@@ -238,7 +241,7 @@ def _decoded_by_api(data: bytes, a, out, bar):
     frames = api.decode_each(data, lod=a.lod) if a.skip_damaged else enumerate(api.decode(data, lod=a.lod))
     with _FrameWriter() as writer:
         for i, mesh in frames:
-            bar.update()
+            bar.step(_decoded_text(stream, i))
             if isinstance(mesh, api.DecodeError):
                 yield i, None, (mesh.offset, str(mesh))
                 continue
@@ -246,6 +249,15 @@ def _decoded_by_api(data: bytes, a, out, bar):
             if out is not None:
                 writer.write(out.path(_frame_name(i, a.format)), mesh)
             yield i, digest, None
+
+
+def _decoded_text(stream, i: int) -> str:
+    """Frame ``i`` of ``stream`` for the progress: "frame 3: P, 864 bytes"."""
+    try:
+        f = stream.frame_info(i)
+    except ValueError:  # a damaged unit: reported as such by the decode
+        return f"frame {i}"
+    return frame_text(i, {"type": f["type"], "bytes": f["bytes"]})
 
 
 class _FrameWriter:
@@ -343,11 +355,18 @@ def cmd_info(a) -> dict:
 
 
 def cmd_metrics(a) -> dict:
-    from . import api
-
-    _, refs = _read_sequence(a.reference, a.start, a.count, a.quiet)
-    _, decs = _read_sequence(a.decoded, None, None, a.quiet)
-    result = api.metrics(refs, decs, peak=a.peak, grid_size=a.grid_size)
+    # --start picks the reference frames a stream was encoded from (its decoded frames are
+    # numbered from 0); --count is the number of frames compared on both sides.
+    ref_paths = resolve_sequence(a.reference, a.start, a.count)
+    dec_paths = resolve_sequence(a.decoded, None, a.count)
+    if len(ref_paths) != len(dec_paths):  # before any mesh is read
+        n = min(len(ref_paths), len(dec_paths))
+        raise CliError(f"{len(ref_paths)} reference frames but {len(dec_paths)} decoded frames: --count {n} compares "
+                       f"the first {n} of each side (--start picks the first reference frame)")
+    refs = _read_meshes(a, ref_paths, "reading the reference")
+    decs = _read_meshes(a, dec_paths, "reading the decoded")
+    with _progress(a, len(refs), "measuring") as bar:
+        result = _metrics(refs, decs, a.peak, a.grid_size, lambda i, f: bar.step(metrics_text(i, f)))
     if not a.json:
         rows = [{"frame": i, **f} for i, f in enumerate(result["frames"])]
         colour = [("y_psnr", "Y PSNR", ".3f"), ("cb_psnr", "Cb PSNR", ".3f"), ("cr_psnr", "Cr PSNR", ".3f")]
@@ -361,9 +380,37 @@ def cmd_metrics(a) -> dict:
     return result
 
 
+def _metrics(refs: list, decs: list, peak: float | None, grid_size: int, on_frame) -> dict:
+    """``api.metrics(refs, decs, peak=peak, grid_size=grid_size)``, frame by frame, with
+    ``on_frame(index, figures)`` after each frame (``api.metrics`` has no such callback:
+    this follows it step for step, and tests/test_cli_day.py checks that both agree)."""
+    import numpy as np
+
+    from . import api
+
+    if len(refs) != len(decs):
+        raise ValueError(f"{len(refs)} reference frames but {len(decs)} decoded frames")
+    lo, hi = api.sequence_bounds(refs)
+    peak = float(np.max(hi - lo)) if peak is None else float(peak)
+    if not (peak > 0 and np.isfinite(peak)):
+        raise ValueError(f"peak must be a positive finite number, not {peak}")
+    textured = all(api._has_texture(m) for m in refs + decs)
+    frames = []
+    for i, (r, d) in enumerate(zip(refs, decs)):
+        try:
+            frames.append(api._frame_metrics(r, d, textured, lo, hi, peak, grid_size))
+        except ValueError as e:
+            raise ValueError(f"frame {i}: {e}") from None
+        on_frame(i, frames[-1])
+    keys = ("d1_psnr", "d2_psnr") + (("y_psnr", "cb_psnr", "cr_psnr") if textured else ())
+    mean = {k: float(np.mean([f[k] for f in frames])) for k in keys}
+    return {"peak": peak, "frames": frames, **mean}
+
+
 def cmd_synth(a) -> dict:
     from .synth import synth_sequence, write_sequence
 
+    check_output_directory(a.output)
     meshes = synth_sequence(frames=a.frames, resolution=a.resolution, seed=a.seed)
     paths = write_sequence(meshes, a.output)
     if not a.json:
@@ -377,6 +424,8 @@ def cmd_demo(a) -> dict:
     from .eval.report import bd_rate
     from .synth import synth_sequence, write_sequence
 
+    if a.workdir:
+        check_output_directory(a.workdir, what="work directory")
     work = Path(a.workdir) if a.workdir else Path(tempfile.mkdtemp(prefix="dynmesh-demo-"))
     meshes = synth_sequence(frames=a.frames, cycle=min(1.0, DEMO_STEP * max(a.frames - 1, 1)))
     paths = write_sequence(meshes, work / "input")
@@ -449,25 +498,29 @@ def cmd_eval(a) -> dict:
     exp = evaluate.load_experiment(a.config)
     out = Path(a.out) if a.out else Path("results") / exp.name
     _check_jobs(a)
+    if not a.report_only:
+        check_output_directory(out, [a.config], what="results directory")
+    if a.report:
+        check_output_directory(a.report, [a.config], what="report directory")
+        refuse_inputs(Path(a.report) / a.report_file, [a.config], "report")
     counts = {"reused": 0, "measured": 0}
     start = time.perf_counter()
     if a.report_only:
         results = evaluate.load_results(out)
     else:
         running: list[str] = []
-        with _progress(len(evaluate.plan_runs(exp)), "eval", a.quiet) as bar:
-            bar.unit = "run"
+        with _progress(a, len(evaluate.plan_runs(exp)), "runs", unit="run") as bar:
 
             def started(run):
                 running.append(run.id)
-                bar.set_postfix_str("running " + ", ".join(running))
+                bar.note("running " + ", ".join(running))
 
             def done(run, record, reused):
                 counts["reused" if reused else "measured"] += 1
                 if run.id in running:
                     running.remove(run.id)
-                bar.update()
-                bar.set_postfix_str("running " + ", ".join(running) if running else "")
+                bar.step(run_text(run.id, record, reused))
+                bar.note("running " + ", ".join(running) if running else "")
 
             records = evaluate.run_experiment(exp, out, jobs=a.jobs, ray=a.ray, force=a.force, on_start=started,
                                                on_done=done)
@@ -501,15 +554,6 @@ def _check_jobs(a) -> None:
         raise CliError(f"--jobs must be at least 1 or auto, got {a.jobs}")
 
 
-def _jobs(text: str) -> int | str:
-    if text == "auto":
-        return text
-    try:
-        return int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of processes or auto, got {text!r}") from None
-
-
 def _encode_jobs(jobs: int | str, frames: int, intra_period: int) -> int:
     """Local processes for ``encode --jobs``: ``auto`` is one per core, but no more than there
     are groups (all-intra: one per frame), so a sequence of one group is coded in this process."""
@@ -526,45 +570,17 @@ def _read_bytes(path: str) -> bytes:
         raise CliError(f"cannot read {path}: {e.strerror}") from None
 
 
-def _non_negative(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        v = -1
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
-    return v
-
-
-def _sequence_args(p):
-    p.add_argument("--start", type=int, help="first frame (index into the sorted list, or number for a printf pattern)")
-    p.add_argument("--count", type=int, help="number of frames")
-
-
-def _parallel_args(p, what: str, jobs: int | str = 1) -> None:
-    g = p.add_mutually_exclusive_group()
-    auto = " ('auto': one per core, at most one per group)" if jobs == "auto" else ""
-    g.add_argument("--jobs", type=_jobs if jobs == "auto" else int, default=jobs,
-                   help=f"{what} in parallel, in separate local processes{auto} (default {jobs})")
-    g.add_argument("--ray", metavar="ADDRESS",
-                   help=f"{what} as tasks of the Ray cluster at ADDRESS ('auto': the one this machine is part of), one "
-                        'per CPU; needs pip install "dynmesh[ray]"')
-
-
-def _common(p):
-    p.add_argument("--json", action="store_true", help="print the result as JSON on stdout")
-    p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")
-
-
 def parser() -> argparse.ArgumentParser:
     d = ENCODER
-    top = argparse.ArgumentParser(prog="dynmesh", description="Codec for dynamic 3D meshes with time-varying topology.")
+    top = Parser(prog="dynmesh", description="Codec for dynamic 3D meshes with time-varying topology.",
+                  epilog=EXIT_STATUS_HELP)
     sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("encode", help="encode a mesh sequence", description="Encode a mesh sequence into a .dmsh stream.")
     p.add_argument("input", help="a directory of .obj/.ply frames, a glob, a printf pattern (frame_%%04d.obj) or one mesh")
-    p.add_argument("-o", "--output", required=True, help="output stream (.dmsh)")
-    _sequence_args(p)
+    p.add_argument("-o", "--output", required=True,
+                   help="output stream (.dmsh), in an existing folder; checked before any frame is read")
+    sequence_args(p)
     p.add_argument("--qp", type=int, default=d["qp"], help=f"displacement quantization parameter; +6 doubles the step (default {d['qp']})")
     p.add_argument("--base-ratio", type=float, default=d["base_ratio"],
                    help=f"base mesh faces / input faces (default: follows --qp, {base_ratio_rule()})")
@@ -592,6 +608,10 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--rigid-align", action=argparse.BooleanOptionalAction, default=d["rigid_align"],
                    help="move each connected part of the reference base rigidly onto the input (ICP, predicted from the "
                         "previous frame's motion) before the anchor's matching (not in the paper; default: %(default)s)")
+    p.add_argument("--motion-parts", action=argparse.BooleanOptionalAction, default=d["motion_parts"],
+                   help="with --rigid-align, also cut each connected part of the reference base into the parts that "
+                        "move apart inside it (bodies in contact meshed as one surface), each aligned by its own rigid "
+                        "fit (ours, not in the paper; default: %(default)s)")
     p.add_argument("--refresh", action=argparse.BooleanOptionalAction, default=d["refresh"],
                    help="code the regions where a predicted frame's moved base fits worst (far from the input, or input it "
                         "does not cover) intra inside the predicted frame, from the frame's own base mesh; kept when the "
@@ -629,13 +649,18 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--texture-codec", choices=list(TEXTURE_CODECS), default=t["texture_codec"],
                    help=f"texture video codec, 10-bit 4:2:0: AV1 (libsvtav1; browsers and `dynmesh play` decode it) or "
                         f"HEVC (libx265; browsers do not) (default {t['texture_codec']})")
-    _parallel_args(p, "groups of --intra-period frames encoded", jobs="auto")
-    _common(p)
+    parallel_args(p, "groups of --intra-period frames encoded", default="auto")
+    common_args(p)
     p.set_defaults(run=cmd_encode)
 
     p = sub.add_parser("decode", help="decode a stream into mesh files", description="Decode a .dmsh stream into frame_0000.obj, ...")
     p.add_argument("input")
-    p.add_argument("-o", "--output", help="output directory (optional with --hash)")
+    p.add_argument("-o", "--output",
+                   help="output directory (optional with --hash), made if missing; it must be new or empty unless --force")
+    p.add_argument("--force", action="store_true",
+                   help="decode into a directory that already holds files: the frame files of a previous decode "
+                        "(frame_NNNN.obj/.mtl/.png/.ply/.glb) are replaced or removed once the new frames are "
+                        "decoded, so that no old frame remains; other files are kept")
     p.add_argument("--format", choices=["obj", "ply", "glb"], default="obj",
                    help="obj (with .mtl and .png when the stream is textured), ply (geometry only) or glb "
                         "(glTF 2.0 binary with normals, and UVs and the texture image when textured)")
@@ -645,9 +670,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--hash", action="store_true",
                    help="print 'frame N sha256 HEX' per frame: SHA-256 of the positions as little-endian float64, "
                         "then the faces as little-endian uint32 (as web/bin/dynmesh-decode.js --hash)")
-    p.add_argument("--lod", type=_non_negative, metavar="K",
+    p.add_argument("--lod", type=non_negative, metavar="K",
                    help="level of detail: stop after K subdivision iterations (default: all of the stream's)")
-    _common(p)
+    common_args(p)
     p.set_defaults(run=cmd_decode)
 
     p = sub.add_parser("play", help="play a stream in the browser",
@@ -657,23 +682,25 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (default 8765; 0 = any free port)")
     p.add_argument("--no-browser", action="store_true", help="only serve; do not open a browser")
     p.add_argument("--fps", type=float, default=30.0, help="frame rate (the stream does not carry one; default 30)")
-    _common(p)
+    common_args(p)
     p.set_defaults(run=cmd_play)
 
     p = sub.add_parser("info", help="show headers and per-frame sizes of a stream")
     p.add_argument("input")
-    _common(p)
+    common_args(p)
     p.set_defaults(run=cmd_info)
 
     p = sub.add_parser("metrics", help="D1/D2 PSNR between two meshes or sequences",
                        description="D1/D2 PSNR (MPEG grid sampling) of DEC against REF, per frame and mean.")
     p.add_argument("reference", help="reference mesh or sequence")
     p.add_argument("decoded", help="decoded mesh or sequence")
-    p.add_argument("--start", type=int, help="first reference frame (to match a stream encoded with --start)")
-    p.add_argument("--count", type=int, help="number of reference frames")
+    p.add_argument("--start", type=int,
+                   help="first reference frame (to match a stream encoded with --start; the decoded frames are "
+                        "taken from their first)")
+    p.add_argument("--count", type=int, help="number of frames compared, the same on both sides (default: all)")
     p.add_argument("--peak", type=float, help="PSNR peak (default: largest side of the reference sequence's bounding box)")
-    p.add_argument("--grid-size", type=int, default=1024, help="sampling grid size (default 1024)")
-    _common(p)
+    p.add_argument("--grid-size", type=grid_size, default=1024, help=f"sampling grid size, 2 to {MAX_GRID_SIZE} (default 1024)")
+    common_args(p)
     p.set_defaults(run=cmd_metrics)
 
     p = sub.add_parser("synth", help="write a synthetic sequence with time-varying topology")
@@ -681,14 +708,14 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--frames", type=int, default=8)
     p.add_argument("--resolution", type=int, default=48, help="polygonization grid cells per side")
     p.add_argument("--seed", type=int, default=0)
-    _common(p)
+    common_args(p)
     p.set_defaults(run=cmd_synth)
 
     p = sub.add_parser("demo", help="synth, encode, decode and measure a built-in sequence")
     p.add_argument("--frames", type=int, default=8)
     p.add_argument("--qps", type=int, nargs="+", default=[26, 30, 34, 38], help="QPs to try (default 26 30 34 38)")
     p.add_argument("--workdir", help="where to keep the files (default: a new temporary directory)")
-    _common(p)
+    common_args(p)
     p.set_defaults(run=cmd_demo)
 
     p = sub.add_parser("eval", help="run a rate-distortion experiment (BD-rate, plots, report)",
@@ -697,15 +724,17 @@ def parser() -> argparse.ArgumentParser:
                                    "and optionally write a Markdown report with RD plots. Finished runs are reused.")
     p.add_argument("config", help="experiment file (.toml); paths in it are relative to its directory")
     p.add_argument("--out", help="results directory (default results/<config stem>)")
-    _parallel_args(p, "runs measured")
+    parallel_args(p, "runs measured")
     p.add_argument("--force", action="store_true", help="measure every run again, even if saved results match")
     p.add_argument("--report", metavar="DIR", help="write a Markdown report with RD plots into DIR")
     p.add_argument("--report-file", default="results.md",
                    help="report file name in DIR; plots go to DIR/<its stem>/ (default results.md)")
     p.add_argument("--report-only", action="store_true",
                    help="measure nothing: rebuild tables and report from OUT/results.json")
-    _common(p)
+    common_args(p)
     p.set_defaults(run=cmd_eval)
+    for p in sub.choices.values():
+        p.epilog = EXIT_STATUS_HELP
     return top
 
 
@@ -725,16 +754,36 @@ def _reported_errors() -> tuple[type[BaseException], ...]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = parser().parse_args(argv)
+    """The ``dynmesh`` command; returns its exit status (``EXIT_STATUS_HELP``)."""
+    try:
+        status = _main(argv)
+        sys.stdout.flush()  # here, where a closed pipe is caught, rather than at exit
+        return status
+    except BrokenPipeError:
+        # The reader went away (`dynmesh decode s.dmsh --hash | head -1`): no error to report,
+        # and, as the Python documentation recommends, stdout goes to devnull so that the
+        # interpreter's last flush does not fail again.
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):  # a stdout without a file (tests)
+            pass
+        return EXIT_PIPE_CLOSED
+
+
+def _main(argv: list[str] | None) -> int:
+    args = parse(parser(), argv)
     args.failure = None  # set by a command that did its work but must still exit non-zero
     try:
         result = args.run(args)
+    except BrokenPipeError:
+        raise
     except _reported_errors() as e:
         print(f"dynmesh {args.command}: error: {_message(e)}", file=sys.stderr)
-        return 1
+        return EXIT_ERROR
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     if args.json:
         import json
 
@@ -742,7 +791,7 @@ def main(argv: list[str] | None = None) -> int:
         print()
     if args.failure:
         print(f"dynmesh {args.command}: error: {args.failure}", file=sys.stderr)
-        return 1
+        return EXIT_ERROR
     return 0
 
 

@@ -94,7 +94,7 @@ fn code_residual<S: Side>(side: &mut S, models: &mut [IntModel; 2], prediction: 
         let residual = truth[axis] as i32 - prediction[axis] as i32;
         let v = prediction[axis] as i64 + side.int(&mut models[axis], residual) as i64;
         if !(0..=max as i64).contains(&v) {
-            return Err(format!("UV atlas: a UV coordinate {v} outside 0..={max}").into());
+            return Err(format!("UV atlas: a UV coordinate {v} outside the range from 0 to {max}").into());
         }
         value[axis] = v as u32;
     }

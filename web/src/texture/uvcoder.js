@@ -204,7 +204,7 @@ function codeResidual(dec, models, prediction, max) {
   const value = [0, 0];
   for (let axis = 0; axis < 2; axis++) {
     const v = prediction[axis] + dec.int(models[axis]);
-    if (v < 0 || v > max) throw new Error(`UV atlas: a UV coordinate ${v} outside 0..=${max}`);
+    if (v < 0 || v > max) throw new Error(`UV atlas: a UV coordinate ${v} outside the range from 0 to ${max}`);
     value[axis] = v;
   }
   return value;
