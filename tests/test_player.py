@@ -5,6 +5,7 @@ render (pixels off the background) and change while it plays."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -92,20 +93,42 @@ def drawn_fraction(img: np.ndarray) -> float:
     return float(np.mean(np.abs(img - BACKGROUND).sum(axis=2) > 30))
 
 
-def in_browser(stream: Path, out: Path, *extra: str) -> dict:
-    """Serves ``stream`` with ``dynmesh play --no-browser`` and runs browser-check.js on it."""
+def needs_browser() -> None:
     if not Path(CHROMIUM).exists():
-        pytest.fail(f"no Chromium at {CHROMIUM}: install Debian's chromium (.ci/run does)")
+        pytest.skip(f"no Chromium at {CHROMIUM}: run web/tools/ensure-chromium.sh (.ci/run does)")
     if not (ROOT / "web" / "node_modules" / "playwright-core").is_dir():
-        pytest.fail("playwright-core is not installed: run `npm ci` in web/")
-    server = subprocess.Popen([sys.executable, "-m", "dynmesh", "play", str(stream), "--no-browser", "--port", "0"],
-                              stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        pytest.skip("playwright-core is not installed: run `npm ci` in web/")
+
+
+@contextlib.contextmanager
+def serving(command: list[str]):
+    """Runs a server command that prints its http://127.0.0.1:PORT/ address first; yields the address."""
+    server = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        url = re.search(r"http://127\.0\.0\.1:\d+/", server.stdout.readline()).group(0)
-        run = subprocess.run([shutil.which("node"), str(CHECK), url, str(out), *extra], capture_output=True, text=True, timeout=300)
+        line = server.stdout.readline()
+        found = re.search(r"http://127\.0\.0\.1:\d+/", line)
+        assert found, line + server.stderr.read()
+        yield found.group(0)
     finally:
         server.terminate()
         server.wait(timeout=30)
+
+
+def play_server(stream: Path) -> list[str]:
+    return [sys.executable, "-m", "dynmesh", "play", str(stream), "--no-browser", "--port", "0"]
+
+
+def static_server(directory: Path) -> list[str]:
+    """Python's plain static file server (unbuffered, so that its address line arrives)."""
+    return [sys.executable, "-u", "-m", "http.server", "0", "--bind", "127.0.0.1", "--directory", str(directory)]
+
+
+def in_browser(stream: Path, out: Path, *extra: str, server: list[str] | None = None) -> dict:
+    """Serves ``stream`` with ``dynmesh play --no-browser`` (or runs ``server``) and runs
+    browser-check.js on the page."""
+    needs_browser()
+    with serving(server or play_server(stream)) as url:
+        run = subprocess.run([shutil.which("node"), str(CHECK), url, str(out), *extra], capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     result = json.loads(run.stdout.splitlines()[-1])
     assert "error" not in result, result
@@ -160,3 +183,34 @@ def test_an_hevc_textured_stream_says_so_and_plays_the_geometry(tmp_path):
     assert "HEVC texture cannot be decoded" in final["status"]
     img = view_pixels(tmp_path / "frame_last.png")
     assert drawn_fraction(img) > 0.02 and final["frame"] == 5
+
+
+def test_an_exported_page_plays_a_textured_stream_from_a_plain_static_server(tmp_path):
+    stream = textured_stream(tmp_path, "av1")
+    page = tmp_path / "page"
+    play = [sys.executable, "-m", "dynmesh", "play", str(stream), "--export", str(page)]
+    assert subprocess.run(play, capture_output=True, text=True, timeout=60).returncode == 0
+    assert (page / "stream.dmsh").read_bytes() == stream.read_bytes()
+    assert not [p for p in page.rglob("*") if p.is_symlink()]  # copies: the folder can be moved or uploaded
+    result = in_browser(stream, tmp_path / "shots", server=static_server(page))  # the page's root, redirected
+    assert result["loaded"]["decoded"] == 6 and result["console"] == []
+    assert result["paused"]["advanced"] >= 2
+    assert result["final"]["textured"] and result["final"]["textureNote"] == "AV1 texture", result["final"]
+    img = view_pixels(tmp_path / "shots" / "frame_last.png")
+    assert drawn_fraction(img) > 0.02 and colourfulness(img) > 25
+
+
+def test_export_refuses_a_non_empty_directory_unless_forced(stream, tmp_path):
+    page = tmp_path / "page"
+    page.mkdir()
+    (page / "mine.txt").write_text("keep")
+    play = [sys.executable, "-m", "dynmesh", "play", str(stream), "--export", str(page)]
+    r = subprocess.run(play, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and r.stderr.count("\n") == 1 and "--force" in r.stderr, r.stderr
+    assert (page / "mine.txt").read_text() == "keep"
+    r = subprocess.run([*play, "--force"], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert not (page / "mine.txt").exists() and (page / "player" / "index.html").is_file()
+    assert "player/index.html" in (page / "index.html").read_text()
+    assert json.loads((page / "info.json").read_text()) == {"name": stream.name, "bytes": stream.stat().st_size, "fps": 30.0}
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["page"]  # no staging folder left beside it

@@ -325,8 +325,14 @@ def _write_frame(path: Path, mesh) -> Path:
 
 
 def cmd_play(a) -> dict:
-    from .player import serve
+    from .player import export, serve
 
+    if a.export:
+        result = export(a.input, a.export, force=a.force, fps=a.fps)
+        if not (a.quiet or a.json):
+            print(f"wrote a static page for {a.input} to {a.export}/ ({result['files']} files): host the folder "
+                  "with any web server and open index.html")
+        return result
     return serve(a.input, port=a.port, open_browser=not a.no_browser, quiet=a.quiet or a.json, fps=a.fps)
 
 
@@ -682,6 +688,9 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--port", type=int, default=8765, help="port on 127.0.0.1 (default 8765; 0 = any free port)")
     p.add_argument("--no-browser", action="store_true", help="only serve; do not open a browser")
     p.add_argument("--fps", type=float, default=30.0, help="frame rate (the stream does not carry one; default 30)")
+    p.add_argument("--export", metavar="DIR", help="write a static page (player, decoder, stream) into DIR for any "
+                                                 "web server, instead of serving; DIR must be new or empty unless --force")
+    p.add_argument("--force", action="store_true", help="with --export: replace a non-empty DIR")
     common_args(p)
     p.set_defaults(run=cmd_play)
 

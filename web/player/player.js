@@ -21,9 +21,9 @@ function status(text) {
 
 async function start() {
   const params = new URLSearchParams(location.search);
-  const url = params.get('stream') ?? '/stream.dmsh';
+  const url = params.get('stream') ?? '../stream.dmsh';
   try {
-    const info = await fetch('/info.json').then((r) => (r.ok ? r.json() : {})).catch(() => ({}));
+    const info = await fetch('../info.json').then((r) => (r.ok ? r.json() : {})).catch(() => ({}));
     fps = Number(params.get('fps') ?? info.fps ?? 30) || 30;
     const response = await fetch(url);
     if (!response.ok) throw new Error(`cannot fetch ${url}: HTTP ${response.status}`);
