@@ -23,6 +23,7 @@ from PIL import Image
 from dynmesh import api
 from dynmesh.player import make_server, web_root
 from dynmesh.conformance import _textured
+from dynmesh.mesh import Mesh
 from dynmesh.synth import synth_sequence
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -135,6 +136,46 @@ def in_browser(stream: Path, out: Path, *extra: str, server: list[str] | None = 
     return result
 
 
+# A page driver: opens argv[2], waits until window.dynmeshPlayer has decoded every frame (or
+# failed), then runs argv[3], the body of an async function in the page, and prints its JSON.
+PROBE = """
+import { createRequire } from 'node:module';
+const { chromium } = createRequire(process.argv[4])('playwright-core');
+const [url, body] = process.argv.slice(2);
+const browser = await chromium.launch({ executablePath: process.env.CHROMIUM || '/usr/bin/chromium', headless: true,
+  args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist',
+    '--disable-background-networking', '--disable-component-update', '--no-first-run'] });
+const out = { console: [] };
+try {
+  const page = await browser.newPage({ viewport: { width: 640, height: 480 } });
+  page.on('console', (m) => { if (m.type() === 'error') out.console.push(m.text()); });
+  page.on('pageerror', (e) => out.console.push(String(e)));
+  await page.goto(url);
+  await page.waitForFunction(() => window.dynmeshPlayer && (window.dynmeshPlayer.state.error
+    || (window.dynmeshPlayer.state.frames > 0 && window.dynmeshPlayer.state.decoded === window.dynmeshPlayer.state.frames)),
+    null, { timeout: 120000 });
+  out.result = await page.evaluate(new Function(`return (async () => { ${body} })()`));
+} catch (e) {
+  out.error = String(e);
+} finally {
+  await browser.close();
+}
+console.log(JSON.stringify(out));
+"""
+
+
+def probe(url: str, body: str, tmp_path: Path):
+    """What the async function ``body`` returns in the page at ``url`` once it has decoded the stream."""
+    script = tmp_path / "probe.mjs"
+    script.write_text(PROBE)
+    run = subprocess.run([shutil.which("node"), str(script), url, body, str(ROOT / "web" / "package.json")],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    out = json.loads(run.stdout.splitlines()[-1])
+    assert "error" not in out and out["console"] == [], out
+    return out["result"]
+
+
 def colourfulness(img: np.ndarray) -> float:
     """Mean channel spread of the drawn pixels: the untextured shading is grey (near 0)."""
     drawn = np.abs(img - BACKGROUND).sum(axis=2) > 30
@@ -214,3 +255,50 @@ def test_export_refuses_a_non_empty_directory_unless_forced(stream, tmp_path):
     assert "player/index.html" in (page / "index.html").read_text()
     assert json.loads((page / "info.json").read_text()) == {"name": stream.name, "bytes": stream.stat().st_size, "fps": 30.0}
     assert sorted(p.name for p in tmp_path.iterdir()) == ["page"]  # no staging folder left beside it
+
+
+def tall(meshes):
+    """The frames stretched to four times their height: a standing figure's proportions."""
+    return [Mesh(m.positions * [1.0, 4.0, 1.0], m.faces) for m in meshes]
+
+
+def facing_minus_x(meshes):
+    """Each frame's faces whose normals point to -x: an open relief that faces -x."""
+    out = []
+    for m in meshes:
+        p = m.positions[m.faces]
+        normal = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        out.append(Mesh(m.positions, m.faces[normal[:, 0] < 0]))
+    return out
+
+
+CAMERA = """
+const p = window.dynmeshPlayer, r = p.renderer;
+return { corners: p.boxCorners(), yaw: r.yaw, view: p.state.view };
+"""
+
+
+@pytest.mark.parametrize("shape", [tall, facing_minus_x], ids=["tall", "facing -x"])
+def test_the_default_camera_frames_the_whole_sequence_from_its_front(tmp_path, shape):
+    needs_browser()
+    frames = shape(synth_sequence(frames=40, resolution=20)[::5][:8])  # frames far apart: the blobs travel
+    stream = tmp_path / "s.dmsh"
+    stream.write_bytes(api.encode(frames, qp=30))
+    with serving(play_server(stream)) as url:
+        camera = probe(url, CAMERA, tmp_path)
+    corners = np.array(camera["corners"])
+    assert np.all(np.abs(corners) < 1), corners  # the box of the sequence, whole, with a margin
+    assert np.abs(corners[:, 1]).max() > 0.7 or np.abs(corners[:, 0]).max() > 0.7  # and not tiny
+    # The box (around the grid's centre, as the page's positions) holds the first frame and
+    # is as tall as the tallest frame.
+    h = api.info(stream.read_bytes())["header"]
+    centre = np.array(h["origin"]) + (2 ** h["bits"] - 1) / 2 * h["step"]
+    lo, hi = (np.array(camera["view"][k]) + centre for k in ("lo", "hi"))
+    used = [m.positions[m.faces].reshape(-1, 3) for m in frames]
+    slack = 0.02 * np.ptp(used[0][:, 1])
+    assert np.all(lo - slack <= used[0].min(axis=0)) and np.all(used[0].max(axis=0) <= hi + slack)
+    assert hi[1] - lo[1] >= 0.9 * max(np.ptp(p[:, 1]) for p in used)
+    # The camera looks from the side the surface faces: +z (glTF's front) for a closed surface.
+    direction = (np.sin(camera["yaw"]), np.cos(camera["yaw"]))
+    expected = (-1.0, 0.0) if shape is facing_minus_x else (0.0, 1.0)
+    assert np.dot(direction, expected) > 0.95, camera["yaw"]

@@ -3,8 +3,9 @@
 // wireframe toggle, a level-of-detail choice, and a timeline of frame types and sizes.
 //
 // Contract for tests: `window.dynmeshPlayer` exposes `state` ({frame, shown (the frame on
-// screen), faces (its triangles), lod, advanced (frames played), decoded, frames, playing, error, textured, textureNote}) and `seek(i)`, `play()`,
-// `pause()`.
+// screen), faces (its triangles), lod, advanced (frames played), decoded, frames, playing, error, textured, textureNote,
+// view (the box {lo, hi} the camera framed, and the `front` it looks from)}), `seek(i)`, `play()`, `pause()`,
+// `renderer`, and `boxCorners()` (where the box's corners project with the current camera).
 
 import { Renderer } from './renderer.js';
 import { TexturePlayer } from './video.js';
@@ -50,7 +51,7 @@ function decode(lod) {
   worker.onmessage = ({ data }) => {
     if (data.token !== my) return;
     if (data.error) fail(data.error);
-    else if (data.header) setup(data.header, data.infos, lod);
+    else if (data.header) setup(data.header, data.infos, data.view, lod);
     else if (data.frame) received(data.frame);
     else if (data.done) status(describe());
   };
@@ -58,8 +59,12 @@ function decode(lod) {
   worker.postMessage({ stream: stream.slice(0), lod: lod < 0 ? undefined : lod, token: my });
 }
 
-function setup(h, frameInfos, lod) {
+function setup(h, frameInfos, view, lod) {
   const first = header === null;
+  if (first) {
+    renderer.fit(view.lo, view.hi, view.front);
+    state.view = view;
+  }
   header = h;
   infos = frameInfos;
   state.frames = infos.length;
@@ -81,26 +86,11 @@ function setupTexture() {
 }
 
 function received(frame) {
-  if (!framed) aim(frame);
   frames[frame.index] = frame;
   state.decoded = frame.index + 1;
   if (frame.index === state.frame) show(state.frame);
   status(describe());
   drawTimeline();
-}
-
-let framed = false;
-/** Aims the camera at the first decoded frame's bounding box. */
-function aim(frame) {
-  const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
-  for (let i = 0; i < frame.positions.length; i++) {
-    const k = i % 3, x = frame.positions[i];
-    if (x < lo[k]) lo[k] = x;
-    if (x > hi[k]) hi[k] = x;
-  }
-  const centre = lo.map((l, k) => (l + hi[k]) / 2);
-  renderer.frame(centre, Math.max(1e-9, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2));
-  framed = true;
 }
 
 function describe() {
@@ -209,7 +199,13 @@ function bind() {
   window.onresize = () => { renderer.draw(); drawTimeline(); };
 }
 
-window.dynmeshPlayer = { state, seek, play, pause, renderer };
+/** Normalized device coordinates of the corners of the sequence's box with the current camera. */
+function boxCorners() {
+  const { lo, hi } = state.view;
+  return [0, 1, 2, 3, 4, 5, 6, 7].map((c) => renderer.project([0, 1, 2].map((k) => ((c >> k) & 1 ? hi[k] : lo[k]))));
+}
+
+window.dynmeshPlayer = { state, seek, play, pause, renderer, boxCorners };
 bind();
 requestAnimationFrame(tick);
 start();

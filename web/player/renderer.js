@@ -3,8 +3,9 @@
 //
 // Contract: `new Renderer(canvas)`; `setMesh({positions, normals, faces, uvs?})` uploads a
 // frame; `setTexture(source|null)` takes anything texImage2D takes (a VideoFrame, a canvas);
-// `draw()` renders with the current camera; `frame(centre, radius)` aims it, `orbit(dx, dy)`
-// and `zoom(f)` move it.
+// `draw()` renders with the current camera; `fit(lo, hi, front)` frames a box from a side,
+// `orbit(dx, dy)` and `zoom(f)` move it; `project(point)` gives a point's normalized device
+// coordinates (what the tests check the framing with).
 // Throws if the browser has no WebGL2.
 
 const VS = `#version 300 es
@@ -24,6 +25,11 @@ void main() {
   vec3 base = mode == 1 ? texture(tex, vuv).rgb : vec3(0.78, 0.8, 0.84);
   out_colour = vec4(base * (mode == 1 ? 0.55 + 0.45 * light : light), 1.0);
 }`;
+
+/** Vertical field of view (radians), and how much larger than the sequence's box the view is
+ * made when framing it. */
+const FOV = 0.8;
+const MARGIN = 1.1;
 
 function compile(gl, type, source) {
   const s = gl.createShader(type);
@@ -83,11 +89,43 @@ export class Renderer {
     gl.enable(gl.DEPTH_TEST);
   }
 
-  /** Points the camera at a sphere of `radius` around `centre` (the first frame's box). */
-  frame(centre, radius) {
-    this.target = centre;
-    this.radius = radius;
-    this.distance = 2.2 * radius;
+  /**
+   * Aims the camera at the centre of the box `lo`..`hi` from the side of the horizontal
+   * direction `front` (y is up), a little above, and backs it off until every corner is
+   * inside the view with a margin (the vertical extent of a standing person included).
+   */
+  fit(lo, hi, front = [0, 0, 1]) {
+    this.target = lo.map((l, k) => (l + hi[k]) / 2);
+    this.radius = Math.max(1e-9, Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]) / 2);
+    this.yaw = Math.atan2(front[0], front[2]);
+    this.pitch = -0.15;
+    const rotation = orbitView(this.yaw, this.pitch, 0);
+    const t = Math.tan(FOV / 2) / MARGIN, aspect = this.aspect();
+    let distance = 0;
+    for (let c = 0; c < 8; c++) {
+      const p = [0, 1, 2].map((k) => ((c >> k) & 1 ? hi[k] : lo[k]) - this.target[k]);
+      const [x, y, z] = [0, 1, 2].map((r) => rotation[r] * p[0] + rotation[4 + r] * p[1] + rotation[8 + r] * p[2]);
+      // In camera coordinates the corner is (x, y) at depth distance - z.
+      distance = Math.max(distance, z + Math.abs(y) / t, z + Math.abs(x) / (t * aspect));
+    }
+    this.distance = Math.max(distance, 1e-9);
+  }
+
+  aspect() {
+    return Math.max(1, this.canvas.clientWidth) / Math.max(1, this.canvas.clientHeight);
+  }
+
+  /** The camera's projection times view (column-major). */
+  matrix() {
+    const proj = perspective(FOV, this.aspect(), this.distance / 100, this.distance + 4 * this.radius);
+    return multiply(proj, orbitView(this.yaw, this.pitch, this.distance));
+  }
+
+  /** Normalized device coordinates [x, y] of a point (within [-1, 1] when in view). */
+  project(point) {
+    const m = this.matrix(), p = point.map((v, k) => v - this.target[k]);
+    const [x, y, , w] = [0, 1, 2, 3].map((r) => m[r] * p[0] + m[4 + r] * p[1] + m[8 + r] * p[2] + m[12 + r]);
+    return [x / w, y / w];
   }
 
   setMesh(mesh) {
@@ -150,9 +188,8 @@ export class Renderer {
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     if (!this.count) return;
     const view = orbitView(this.yaw, this.pitch, this.distance);
-    const proj = perspective(0.8, w / h, this.distance / 100, this.distance + 4 * this.radius);
     gl.useProgram(this.program);
-    gl.uniformMatrix4fv(this.loc.mvp, false, multiply(proj, view));
+    gl.uniformMatrix4fv(this.loc.mvp, false, this.matrix());
     gl.uniformMatrix4fv(this.loc.view, false, view);
     gl.uniform3fv(this.loc.target, this.target);
     gl.bindVertexArray(this.vao);

@@ -2,7 +2,7 @@
 // detail and posts each as it is done (float32 positions relative to the grid centre, vertex
 // normals, faces; and, for textured streams, the frame's UVs unwelded per corner).
 //
-// Messages in: {stream: ArrayBuffer, lod, token}. Out: {token, header, infos}, then
+// Messages in: {stream: ArrayBuffer, lod, token}. Out: {token, header, infos, view}, then
 // {token, frame}, per frame, then {token, done}; or {token, error} with the decoder's message.
 
 import { Decoder } from '../src/decoder.js';
@@ -16,7 +16,8 @@ self.onmessage = (event) => {
     const infos = Array.from({ length: dec.frameCount }, (_, i) => dec.frameInfo(i));
     const half = (2 ** h.bits - 1) / 2;
     const centre = h.origin.map((o) => o + half * h.step);
-    self.postMessage({ token, header: { ...h, centre, extent: 2 * half * h.step }, infos });
+    const view = sequenceView(new Uint8Array(stream), infos, centre);
+    self.postMessage({ token, header: { ...h, centre, extent: 2 * half * h.step }, infos, view });
     const uvs = frameUvs(dec);
     for (let i = 0; i < dec.frameCount; i++) {
       const f = dec.decodeFrame(i);
@@ -33,6 +34,46 @@ self.onmessage = (event) => {
     self.postMessage({ token, error: e.message });
   }
 };
+
+/**
+ * What the default camera frames: {lo, hi} the box of the sequence around `centre`, and
+ * `front`, the horizontal direction the surface faces. The box is the union of the intra
+ * frames' base meshes (level of detail 0: cheap, and a predicted frame stays near its
+ * group's intra frame); the front is the area-weighted mean normal of the first frame where
+ * it clearly has one (an open surface, a relief), else +z (a closed surface, whose normals
+ * cancel: the glTF convention's front).
+ */
+function sequenceView(stream, infos, centre) {
+  const dec = new Decoder(stream, { lod: 0 });
+  const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
+  let front = null;
+  infos.forEach((info, i) => {
+    if (info.type !== 'I') return;
+    const f = dec.decodeFrame(i);
+    for (let j = 0; j < f.positions.length; j++) {
+      const k = j % 3, x = f.positions[j] - centre[k];
+      if (x < lo[k]) lo[k] = x;
+      if (x > hi[k]) hi[k] = x;
+    }
+    front ??= facing(f);
+  });
+  return { lo, hi, front: front ?? [0, 0, 1] };
+}
+
+/** The horizontal unit direction of a frame's summed face normals (twice the area each), or
+ * null when it is under a fifth of the area (no clear side). */
+function facing({ positions: p, faces }) {
+  let sx = 0, sz = 0, area = 0;
+  for (let t = 0; t < faces.length; t += 3) {
+    const a = 3 * faces[t], b = 3 * faces[t + 1], c = 3 * faces[t + 2];
+    const ux = p[b] - p[a], uy = p[b + 1] - p[a + 1], uz = p[b + 2] - p[a + 2];
+    const vx = p[c] - p[a], vy = p[c + 1] - p[a + 1], vz = p[c + 2] - p[a + 2];
+    const nx = uy * vz - uz * vy, ny = uz * vx - ux * vz, nz = ux * vy - uy * vx;
+    sx += nx; sz += nz; area += Math.hypot(nx, ny, nz);
+  }
+  const l = Math.hypot(sx, sz);
+  return l > 0.2 * area ? [sx / l, 0, sz / l] : null;
+}
 
 /** Float32 positions around `centre`, unit vertex normals and the faces of a decoded frame. */
 function renderable(f, centre) {
