@@ -32,8 +32,13 @@ libsvtav1 preset 6, h.-levels=2  -16.5 %    -10.3 %     -21.5 %     0.25 / 0.06 
 libsvtav1 preset 5, h.-levels=2                         -22.4 %     0.36 / 0.07
 ===============================  =========  ==========  ==========  =============================
 
-(AV1 rows: crf 16-60 in steps of 4.) Preset 6 with two hierarchical levels is the choice
-(``AV1_PRESET``, ``AV1_PARAMS``). With the QP mapping, through this module at the same
+(AV1 rows: crf 16-60 in steps of 4.) Preset 6 with two hierarchical levels was the first
+choice; preset 4 (``AV1_PRESET``) replaced it: on the encoder's own atlases at geometry QP 28,
+texture_qp 26-42, it takes 6.5 % (basketball) and 7.3 % (liam) fewer texture bytes at the same
+luma PSNR (Y BD-rate at total rate -5.4 % and -4.5 %, Cb and Cr -3 to -8 %), for 1.9x the
+video's encode time (liam 6 frames: 0.52 -> 1.0 s, basketball 3 frames: 1.0 -> 2.0 s, one run
+on the shared machine); preset 5 gave -0.6 % for 1.3x. With the QP mapping (fitted at preset
+6), through this module at the same
 texture_qp 22-42, it takes -18.0 % (liam 6 frames), -11.7 % (basketball), -22.2 % (liam 12
 frames at 2048) and -25.0 % (liam 15 frames at 1024) Y BD-rate against libx265 ultrafast, and
 -26 % to -37 % in Cb and Cr. Presets 10 to 13 cost +17 % to +74 % (12 and 13 are mapped to 11
@@ -63,11 +68,10 @@ CODECS = TEXTURE_CODECS
 #: cores (``bench/bench_texture.py`` measures the presets).
 HEVC_PRESET = "ultrafast"
 
-#: libsvtav1 preset (0 slowest to 13): 6 encodes a 2048 x 2048 frame about as fast as libx265
-#: ultrafast on two cores (0.25 s against 0.29-0.36 s on 12 frames of liam_textured; preset 5
-#: takes 0.36 s for 1 % fewer bytes) and takes 12-25 % fewer bytes than libx265 ultrafast at
-#: the same luma PSNR (the table in the module's docstring).
-AV1_PRESET = 6
+#: libsvtav1 preset (0 slowest to 13): 4, about 7 % fewer texture bytes than 6 at the same
+#: luma PSNR for twice the video's encode time (the module's docstring); the texture is most
+#: of a textured stream's bytes, its video a small part of the encode time.
+AV1_PRESET = 4
 
 #: SVT-AV1 parameters besides the preset, the quantizer and ``keyint`` (which is set to the
 #: group's length + 1, so that the first picture is the only key frame): low delay
@@ -82,7 +86,7 @@ AV1_PARAMS = {"pred-struct": 1, "hierarchical-levels": 2, "scd": 0, "rc": 0, "aq
 
 #: ``texture_qp`` (HEVC scale) -> SVT-AV1 ``crf`` (0-70 in quarter steps; 0 the finest, above
 #: 63 SVT-AV1's extended range): linear between these (qp, crf) knots, rounded to a quarter.
-#: Fitted so that libsvtav1 at ``AV1_PRESET`` with ``AV1_PARAMS`` gives the luma PSNR of
+#: Fitted so that libsvtav1 at preset 6 with ``AV1_PARAMS`` gives the luma PSNR of
 #: libx265 ultrafast at the same QP on liam_textured and basketball_textured atlases (1.8 crf
 #: steps per QP from 20 to 41; above crf 61, into SVT-AV1's extended range, each crf step
 #: costs more PSNR, so the last segment is flatter). Residual luma PSNR of AV1 minus HEVC at
