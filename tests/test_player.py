@@ -136,12 +136,12 @@ def in_browser(stream: Path, out: Path, *extra: str, server: list[str] | None = 
     return result
 
 
-# A page driver: opens argv[2], waits until window.dynmeshPlayer has decoded every frame (or
-# failed), then runs argv[3], the body of an async function in the page, and prints its JSON.
+# A page driver: opens argv[2], waits until the expression argv[5] holds in the page, then runs
+# argv[3], the body of an async function in the page, and prints its JSON.
 PROBE = """
 import { createRequire } from 'node:module';
 const { chromium } = createRequire(process.argv[4])('playwright-core');
-const [url, body] = process.argv.slice(2);
+const [url, body, , wait] = process.argv.slice(2);
 const browser = await chromium.launch({ executablePath: process.env.CHROMIUM || '/usr/bin/chromium', headless: true,
   args: ['--no-sandbox', '--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--ignore-gpu-blocklist',
     '--disable-background-networking', '--disable-component-update', '--no-first-run'] });
@@ -151,9 +151,7 @@ try {
   page.on('console', (m) => { if (m.type() === 'error') out.console.push(m.text()); });
   page.on('pageerror', (e) => out.console.push(String(e)));
   await page.goto(url);
-  await page.waitForFunction(() => window.dynmeshPlayer && (window.dynmeshPlayer.state.error
-    || (window.dynmeshPlayer.state.frames > 0 && window.dynmeshPlayer.state.decoded === window.dynmeshPlayer.state.frames)),
-    null, { timeout: 120000 });
+  await page.waitForFunction(wait, null, { timeout: 120000 });
   out.result = await page.evaluate(new Function(`return (async () => { ${body} })()`));
 } catch (e) {
   out.error = String(e);
@@ -164,11 +162,16 @@ console.log(JSON.stringify(out));
 """
 
 
-def probe(url: str, body: str, tmp_path: Path):
-    """What the async function ``body`` returns in the page at ``url`` once it has decoded the stream."""
+DECODED = ("window.dynmeshPlayer && (window.dynmeshPlayer.state.error || (window.dynmeshPlayer.state.frames > 0"
+           " && window.dynmeshPlayer.state.decoded === window.dynmeshPlayer.state.frames))")
+
+
+def probe(url: str, body: str, tmp_path: Path, wait: str = DECODED):
+    """What the async function ``body`` returns in the page at ``url`` once ``wait`` holds
+    there (by default: the player page has decoded the stream)."""
     script = tmp_path / "probe.mjs"
     script.write_text(PROBE)
-    run = subprocess.run([shutil.which("node"), str(script), url, body, str(ROOT / "web" / "package.json")],
+    run = subprocess.run([shutil.which("node"), str(script), url, body, str(ROOT / "web" / "package.json"), wait],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
     out = json.loads(run.stdout.splitlines()[-1])
@@ -302,3 +305,49 @@ def test_the_default_camera_frames_the_whole_sequence_from_its_front(tmp_path, s
     direction = (np.sin(camera["yaw"]), np.cos(camera["yaw"]))
     expected = (-1.0, 0.0) if shape is facing_minus_x else (0.0, 1.0)
     assert np.dot(direction, expected) > 0.95, camera["yaw"]
+
+
+EMBED = """<!doctype html>
+<meta charset="utf-8"><link rel="icon" href="data:,">
+<canvas id="view" style="width: 320px; height: 240px"></canvas>
+<script type="module">
+import { createPlayer } from './player/api.js';
+window.embedded = createPlayer(document.getElementById('view'), { loop: false });
+</script>
+"""
+
+SEEK = """
+const p = window.embedded, events = [];
+for (const name of ['frame', 'ended', 'error']) p.addEventListener(name, (e) => events.push([name, e.detail ? (e.detail.index ?? e.detail.message) : null]));
+await p.load('stream.dmsh');
+const shown = new Promise((resolve) => p.addEventListener('frame', (e) => e.detail.index === K && resolve(e.detail)));
+p.seek(K);
+const detail = await shown;
+const atSeek = { ...p.state };
+p.play();
+await new Promise((resolve) => p.addEventListener('ended', resolve));
+return { detail, atSeek, events, end: { ...p.state } };
+"""
+
+
+def test_the_module_api_loads_seeks_to_a_predicted_frame_with_its_texture_and_plays_to_the_end(tmp_path):
+    needs_browser()
+    frames = _textured(synth_sequence(frames=40, resolution=20)[:8])
+    stream = tmp_path / "s.dmsh"
+    stream.write_bytes(api.encode(frames, qp=30, intra_period=4, texture_size=128, texture_codec="av1", texture_qp=30))
+    types = [f["type"] for f in api.info(stream.read_bytes())["frames"]]
+    k = 6  # a predicted frame of the second texture group: decoded from intra frame 4
+    assert types[4] == "I" and types[k] == "P", types
+    page = tmp_path / "page"
+    assert subprocess.run([sys.executable, "-m", "dynmesh", "play", str(stream), "--export", str(page)], timeout=60).returncode == 0
+    (page / "embed.html").write_text(EMBED)
+    with serving(static_server(page)) as url:
+        out = probe(url + "embed.html", SEEK.replace("K", str(k)), tmp_path, wait="window.embedded")
+    assert out["detail"] == {"index": k, "type": "P"}
+    assert out["atSeek"]["shown"] == k and out["atSeek"]["textured"] and out["atSeek"]["error"] is None
+    # Played from k to the last frame, each shown once, then `ended` (no loop).
+    # (Frame 0, the one on screen at load, shows first if it was decoded before the seek came.)
+    shown = [i for name, i in out["events"] if name == "frame"]
+    assert shown[shown.index(k):] == list(range(k, 8)) and set(shown[:shown.index(k)]) <= {0}, shown
+    assert out["events"][-1] == ["ended", None], out["events"]
+    assert out["end"]["frame"] == 7 and not out["end"]["playing"]

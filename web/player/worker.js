@@ -1,15 +1,24 @@
-// Decoding off the page's thread: decodes every frame of a stream in order at one level of
-// detail and posts each as it is done (float32 positions relative to the grid centre, vertex
-// normals, faces; and, for textured streams, the frame's UVs unwelded per corner).
+// Decoding off the page's thread: decodes every frame of a stream at one level of detail and
+// posts each as it is done (float32 positions relative to the grid centre, vertex normals,
+// faces; and, for textured streams, the frame's UVs unwelded per corner). Frames go in order
+// from `first`, except that a frame asked for by a seek is decoded next (the decoder starts
+// it from the nearest intra frame, or a state it holds) and the order goes on after it.
 //
-// Messages in: {stream: ArrayBuffer, lod, token}. Out: {token, header, infos, view}, then
-// {token, frame}, per frame, then {token, done}; or {token, error} with the decoder's message.
+// Messages in: {stream: ArrayBuffer, lod, token, first}, then any number of {token, seek}.
+// Out: {token, header, infos, view}, then {token, frame}, per frame, then {token, done}; or
+// {token, error} with the decoder's message.
 
 import { Decoder } from '../src/decoder.js';
 import { frameUvs } from '../src/texture/unit.js';
 
-self.onmessage = (event) => {
-  const { stream, lod, token } = event.data;
+let job = null;
+
+self.onmessage = ({ data }) => {
+  if (data.stream) start(data);
+  else if (job && data.token === job.token) job.wanted.push(data.seek);
+};
+
+function start({ stream, lod, token, first }) {
   try {
     const dec = new Decoder(new Uint8Array(stream), { lod });
     const h = dec.header;
@@ -18,22 +27,57 @@ self.onmessage = (event) => {
     const centre = h.origin.map((o) => o + half * h.step);
     const view = sequenceView(new Uint8Array(stream), infos, centre);
     self.postMessage({ token, header: { ...h, centre, extent: 2 * half * h.step }, infos, view });
-    const uvs = frameUvs(dec);
-    for (let i = 0; i < dec.frameCount; i++) {
-      const f = dec.decodeFrame(i);
-      const frame = renderable(f, centre);
-      frame.index = i;
-      const uv = uvs(i);
-      if (uv) Object.assign(frame, unweld(frame, uv));
-      const transfer = [frame.positions.buffer, frame.normals.buffer, frame.faces.buffer];
-      if (frame.uvs) transfer.push(frame.uvs.buffer);
-      self.postMessage({ token, frame }, transfer);
-    }
-    self.postMessage({ token, done: true });
+    const n = dec.frameCount;
+    job = { dec, token, centre, uvs: frameUvs(dec), groups: new Map(), sent: new Uint8Array(n), left: n, next: Math.min(first ?? 0, n - 1), wanted: [] };
+    setTimeout(step, 0);
   } catch (e) {
     self.postMessage({ token, error: e.message });
   }
-};
+}
+
+/** Decodes and posts one frame, then yields (so that a seek can come in) and goes on. */
+function step() {
+  let i = job.wanted.pop();
+  job.wanted.length = 0; // only the latest seek matters
+  if (i === undefined || job.sent[i]) {
+    for (i = job.next; job.sent[i]; i = (i + 1) % job.sent.length);
+  }
+  try {
+    post(i);
+  } catch (e) {
+    self.postMessage({ token: job.token, error: e.message });
+    return;
+  }
+  job.next = (i + 1) % job.sent.length;
+  if (--job.left > 0) setTimeout(step, 0);
+  else self.postMessage({ token: job.token, done: true });
+}
+
+function post(i) {
+  const frame = renderable(job.dec.decodeFrame(i), job.centre);
+  frame.index = i;
+  const uv = groupUvs(i);
+  if (uv) Object.assign(frame, unweld(frame, uv));
+  const transfer = [frame.positions.buffer, frame.normals.buffer, frame.faces.buffer];
+  if (frame.uvs) transfer.push(frame.uvs.buffer);
+  job.sent[i] = 1;
+  self.postMessage({ token: job.token, frame }, transfer);
+}
+
+/** Frame i's UVs (its texture group's), or null. `frameUvs` reads a group's UVs right after
+ * the decode of the group's first frame, on its base mesh; frames come out of order here, so
+ * each group's are read that way once and kept (the last few groups). */
+function groupUvs(i) {
+  if (job.dec.texturePayload(0) === null) return null; // untextured
+  let g = i;
+  while (g > 0 && job.dec.texturePayload(g) === null) g--;
+  if (!job.groups.has(g)) {
+    if (g !== i) job.dec.decodeFrame(g);
+    job.groups.set(g, job.uvs(g));
+    if (job.groups.size > 4) job.groups.delete(job.groups.keys().next().value);
+  }
+  return job.groups.get(g);
+}
 
 /**
  * What the default camera frames: {lo, hi} the box of the sequence around `centre`, and
