@@ -151,6 +151,14 @@ def test_synth_and_demo_run(tmp_path):
     assert "bd_rate" in demo["bd_rate_vs_all_intra"]
 
 
+@pytest.mark.parametrize("kind", ["fused-gears", "cloth"])
+def test_synth_writes_one_surface_kinds(tmp_path, kind):
+    run("synth", tmp_path / kind, "--kind", kind, "--frames", "2", "--resolution", "32")
+    frames = [read_mesh(p) for p in sorted((tmp_path / kind).glob("frame_*.obj"))]
+    assert len(frames) == 2 and len(frames[0].positions) != len(frames[1].positions)
+    assert run("synth", tmp_path / "x", "--kind", "teapot", check=False).returncode == 1
+
+
 def test_shared_sequence_quality_rises_as_qp_falls(tmp_path):
     folder = shared_sequence("basketball_player")
     psnr = []

@@ -95,10 +95,13 @@ def drawn_fraction(img: np.ndarray) -> float:
 
 
 def needs_browser() -> None:
+    """Skips without a browser, except in CI (``CI`` set, as ``.ci/run`` runs), which installs
+    one: there a missing browser is a failure, not a green run that tested nothing."""
+    missing = pytest.fail if os.environ.get("CI") else pytest.skip
     if not Path(CHROMIUM).exists():
-        pytest.skip(f"no Chromium at {CHROMIUM}: run web/tools/ensure-chromium.sh (.ci/run does)")
+        missing(f"no Chromium at {CHROMIUM}: run web/tools/ensure-chromium.sh (.ci/run does)")
     if not (ROOT / "web" / "node_modules" / "playwright-core").is_dir():
-        pytest.skip("playwright-core is not installed: run `npm ci` in web/")
+        missing("playwright-core is not installed: run `npm ci` in web/")
 
 
 @contextlib.contextmanager

@@ -414,11 +414,16 @@ def _metrics(refs: list, decs: list, peak: float | None, grid_size: int, on_fram
 
 
 def cmd_synth(a) -> dict:
-    from .synth import synth_sequence, write_sequence
+    from . import synth
 
     check_output_directory(a.output)
-    meshes = synth_sequence(frames=a.frames, resolution=a.resolution, seed=a.seed)
-    paths = write_sequence(meshes, a.output)
+    resolution = {} if a.resolution is None else {"resolution": a.resolution}
+    meshes = {
+        "metaballs": lambda: synth.synth_sequence(frames=a.frames, seed=a.seed, **resolution),
+        "fused-gears": lambda: synth.fused_gear_sequence(frames=a.frames, **resolution),
+        "cloth": lambda: synth.cloth_sequence(frames=a.frames, **resolution),
+    }[a.kind]()
+    paths = synth.write_sequence(meshes, a.output)
     if not a.json:
         print(f"wrote {len(paths)} frames to {a.output}")
     return {"frames": [str(p) for p in paths]}
@@ -714,9 +719,13 @@ def parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("synth", help="write a synthetic sequence with time-varying topology")
     p.add_argument("output", help="output directory")
+    p.add_argument("--kind", choices=("metaballs", "fused-gears", "cloth"), default="metaballs",
+                   help="metaballs that merge and split (default); two meshing gears whose teeth fuse into one "
+                        "surface; a sleeve sliding along an arm (both: parts that move differently inside one surface)")
     p.add_argument("--frames", type=int, default=8)
-    p.add_argument("--resolution", type=int, default=48, help="polygonization grid cells per side")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--resolution", type=int, default=None,
+                   help="polygonization grid cells per side (default: the kind's own, 48 for metaballs)")
+    p.add_argument("--seed", type=int, default=0, help="metaballs' random paths")
     common_args(p)
     p.set_defaults(run=cmd_synth)
 
