@@ -101,7 +101,13 @@ pub fn anchor_mesh(reference: &ReferenceBase, input: &Mesh, input_bvh: &Bvh, par
     };
     let on_surface: Vec<[f64; 3]> = base.positions.iter().zip(&offsets).map(|(&p, &o)| sub(p, o)).collect();
     let mut start = Mesh::new(on_surface, base.faces.clone());
-    let mut aligned = params.rigid_align.then(|| rigid::align_parts(&start, input_bvh, reference.motions, params.motion_parts));
+    let mut aligned = params.rigid_align.then(|| {
+        let mut a = rigid::align_parts(&start, input_bvh, reference.motions);
+        if params.motion_parts {
+            parts::split_by_motion(&start, input_bvh, reference.motions, &mut a);
+        }
+        a
+    });
     if let Some(a) = &mut aligned {
         start.positions = std::mem::take(&mut a.positions);
     }

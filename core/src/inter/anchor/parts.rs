@@ -18,7 +18,7 @@
 use crate::geom::bvh::Bvh;
 use crate::geom::mesh::{dist2, Mesh};
 
-use super::rigid::{refined_motion, part_motion, trimmed_cost, Rigid};
+use super::rigid::{part_motion, piece_members, refined_motion, trimmed_cost, Aligned, PartMotions, Rigid};
 
 /// About one region per this many vertices of a piece...
 const REGION_SIZE: usize = 150;
@@ -34,12 +34,36 @@ const SPLIT_GAIN: f64 = 0.25;
 /// closer (squared distance) than its own part's.
 const VERTEX_GAIN: f64 = 0.25;
 
+/// Cuts the pieces of `aligned` (from [`super::rigid::align_parts`] on `reference`) into the
+/// parts that move apart inside them ([`motion_parts`]), new parts numbered after the pieces,
+/// and moves `aligned.positions` by them. A region's search starts from `previous`'s motion
+/// of its seed vertex (ignored unless it has one part per vertex of `reference`).
+pub fn split_by_motion(reference: &Mesh, input: &Bvh, previous: Option<&PartMotions>, aligned: &mut Aligned) {
+    if input.is_empty() {
+        return;
+    }
+    let per_vertex = previous.filter(|p| p.parts.len() == reference.positions.len());
+    let motions = &mut aligned.motions;
+    for (i, m) in piece_members(&motions.parts.clone()).iter().enumerate() {
+        let points: Vec<[f64; 3]> = m.iter().map(|&v| reference.positions[v]).collect();
+        let predicted = |k: usize| per_vertex.map(|p| p.of(m[k]));
+        if let Some((sub, extra)) = motion_parts(&points, &piece_faces(reference, m), input, motions.motions[i], &predicted) {
+            let first = motions.motions.len() as u32 - 1;
+            for (&v, &s) in m.iter().zip(&sub) {
+                motions.parts[v] = if s == 0 { i as u32 } else { first + s };
+            }
+            motions.motions.extend(&extra[1..]);
+        }
+    }
+    aligned.positions = motions.moved(&reference.positions);
+}
+
 /// Per vertex of `piece` (the positions of one connected piece), the index of its part, and
 /// the rigid motion of each part, part 0 being `whole` (the piece's own motion). Returns
 /// `None` when the piece is too small to cut or no region moves clearly apart from `whole`.
 /// `predicted(v)` is the motion that vertex `v` of the piece had in the reference frame, if
 /// known: it predicts the motion of a region seeded at `v`.
-pub fn motion_parts(piece: &[[f64; 3]], faces: &[[u32; 3]], input: &Bvh, whole: Rigid, predicted: &dyn Fn(usize) -> Option<Rigid>) -> Option<(Vec<u32>, Vec<Rigid>)> {
+fn motion_parts(piece: &[[f64; 3]], faces: &[[u32; 3]], input: &Bvh, whole: Rigid, predicted: &dyn Fn(usize) -> Option<Rigid>) -> Option<(Vec<u32>, Vec<Rigid>)> {
     let k = (piece.len() / REGION_SIZE).min(MAX_REGIONS);
     if k < 2 {
         return None;
@@ -223,9 +247,9 @@ fn follow_contact(piece: &[[f64; 3]], faces: &[[u32; 3]], input: &Bvh, parts: &[
     }
 }
 
-/// A piece's vertices and faces renumbered from 0, for [`motion_parts`]: `members` are the
+/// The faces of a piece, its vertices renumbered from 0 in order: `members` are the
 /// piece's vertex indices in `mesh`, ascending.
-pub fn piece_faces(mesh: &Mesh, members: &[usize]) -> Vec<[u32; 3]> {
+fn piece_faces(mesh: &Mesh, members: &[usize]) -> Vec<[u32; 3]> {
     let mut index = vec![u32::MAX; mesh.positions.len()];
     for (i, &v) in members.iter().enumerate() {
         index[v] = i as u32;
@@ -235,8 +259,16 @@ pub fn piece_faces(mesh: &Mesh, members: &[usize]) -> Vec<[u32; 3]> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::rigid::{align_parts, Rigid};
+    use super::super::rigid::align_parts;
     use super::*;
+
+    fn aligned(reference: &Mesh, input: &Bvh, by_motion: bool) -> Aligned {
+        let mut a = align_parts(reference, input, None);
+        if by_motion {
+            split_by_motion(reference, input, None, &mut a);
+        }
+        a
+    }
 
     /// A turn by `angle` about the z axis through (`x`, 0).
     fn turn_about(x: f64, angle: f64) -> Rigid {
@@ -286,10 +318,10 @@ mod tests {
         let reference = touching_tubes(&Rigid::IDENTITY, &Rigid::IDENTITY);
         let input = touching_tubes(&left, &right);
         let bvh = Bvh::new(&input.positions, &input.faces);
-        let cost = |a: &super::super::rigid::Aligned| {
+        let cost = |a: &Aligned| {
             a.positions.iter().map(|&p| bvh.closest_point(p).map_or(0.0, |c| c.dist2)).sum::<f64>() / a.positions.len() as f64
         };
-        let (one, cut) = (align_parts(&reference, &bvh, None, false), align_parts(&reference, &bvh, None, true));
+        let (one, cut) = (aligned(&reference, &bvh, false), aligned(&reference, &bvh, true));
         assert_eq!(one.motions.motions.len(), 1, "one connected piece");
         assert!(cost(&cut) < 0.1 * cost(&one), "cut {} one {}", cost(&cut), cost(&one));
         // Each tube's vertices (but a few at the strip) share a part, and the two differ.
@@ -309,7 +341,7 @@ mod tests {
         let reference = touching_tubes(&Rigid::IDENTITY, &Rigid::IDENTITY);
         let input = touching_tubes(&m, &m);
         let bvh = Bvh::new(&input.positions, &input.faces);
-        let a = align_parts(&reference, &bvh, None, true);
+        let a = aligned(&reference, &bvh, true);
         assert_eq!(a.motions.motions.len(), 1);
         assert!(a.motions.parts.iter().all(|&p| p == 0));
     }

@@ -104,8 +104,8 @@ pub fn parts(reference: &Mesh) -> Vec<u32> {
 /// The parts of a reference base and how each moved.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PartMotions {
-    /// The part of each vertex: its connected piece ([`parts`]), or with `by_motion` a part
-    /// found inside a piece ([`super::parts`]), numbered after the pieces.
+    /// The part of each vertex: its connected piece ([`parts`]), or a part found inside a
+    /// piece ([`super::parts`]), numbered after the pieces.
     pub parts: Vec<u32>,
     /// The motion of each part; the first `pieces` are the pieces' own motions.
     pub motions: Vec<Rigid>,
@@ -118,6 +118,11 @@ impl PartMotions {
     pub fn of(&self, v: usize) -> Rigid {
         self.motions[self.parts[v] as usize]
     }
+
+    /// `positions` (one per vertex) each moved by its part's motion.
+    pub fn moved(&self, positions: &[[f64; 3]]) -> Vec<[f64; 3]> {
+        positions.iter().enumerate().map(|(v, &p)| self.of(v).apply(p)).collect()
+    }
 }
 
 /// A reference moved part by part.
@@ -128,43 +133,33 @@ pub struct Aligned {
 
 /// The rigid motion of each connected piece of `reference` onto `input`, tried from no
 /// motion and from the piece's motion in `previous` when given (ignored unless it has as
-/// many pieces), and the reference positions moved by them. With `by_motion`, each piece is
-/// also cut into the parts that move apart inside it ([`super::parts::motion_parts`]), whose
-/// searches start from `previous`'s motion of the same vertex (ignored unless it has one
-/// part per vertex of `reference`).
-pub fn align_parts(reference: &Mesh, input: &Bvh, previous: Option<&PartMotions>, by_motion: bool) -> Aligned {
+/// many pieces), and the reference positions moved by them. [`super::parts`] may then cut the
+/// pieces further.
+pub fn align_parts(reference: &Mesh, input: &Bvh, previous: Option<&PartMotions>) -> Aligned {
     let label = parts(reference);
+    let members = piece_members(&label);
+    let count = members.len();
+    let motions: Vec<Rigid> = members
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let predicted = previous.filter(|p| p.pieces == count).map(|p| p.motions[i]);
+            let points: Vec<[f64; 3]> = m.iter().map(|&v| reference.positions[v]).collect();
+            if m.len() < MIN_PART || input.is_empty() { Rigid::IDENTITY } else { part_motion(&points, input, predicted) }
+        })
+        .collect();
+    let motions = PartMotions { parts: label, motions, pieces: count };
+    Aligned { positions: motions.moved(&reference.positions), motions }
+}
+
+/// The vertices of each part of a labelling, ascending.
+pub fn piece_members(label: &[u32]) -> Vec<Vec<usize>> {
     let count = label.iter().map(|&l| l as usize + 1).max().unwrap_or(0);
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); count];
     for (v, &l) in label.iter().enumerate() {
         members[l as usize].push(v);
     }
-    let points = |m: &[usize]| m.iter().map(|&v| reference.positions[v]).collect::<Vec<_>>();
-    let whole: Vec<Rigid> = members
-        .iter()
-        .enumerate()
-        .map(|(i, m)| {
-            let predicted = previous.filter(|p| p.pieces == count).map(|p| p.motions[i]);
-            if m.len() < MIN_PART || input.is_empty() { Rigid::IDENTITY } else { part_motion(&points(m), input, predicted) }
-        })
-        .collect();
-    let mut motions = PartMotions { parts: label, motions: whole.clone(), pieces: count };
-    if by_motion && !input.is_empty() {
-        let per_vertex = previous.filter(|p| p.parts.len() == reference.positions.len());
-        for (i, m) in members.iter().enumerate() {
-            let predicted = |k: usize| per_vertex.map(|p| p.of(m[k]));
-            let faces = super::parts::piece_faces(reference, m);
-            if let Some((sub, extra)) = super::parts::motion_parts(&points(m), &faces, input, whole[i], &predicted) {
-                let first = motions.motions.len() as u32 - 1;
-                for (&v, &s) in m.iter().zip(&sub) {
-                    motions.parts[v] = if s == 0 { i as u32 } else { first + s };
-                }
-                motions.motions.extend(&extra[1..]);
-            }
-        }
-    }
-    let positions = (0..reference.positions.len()).map(|v| motions.of(v).apply(reference.positions[v])).collect();
-    Aligned { positions, motions }
+    members
 }
 
 /// The best of ICP from no motion and from `predicted` (or, without one, from the best
@@ -353,7 +348,7 @@ mod tests {
         // A small turn and shift: ICP from no motion finds it.
         let input = toothed(8, &turn_z(0.05, [0.1, 0.05, 0.0]));
         let bvh = Bvh::new(&input.positions, &input.faces);
-        let a = align_parts(&reference, &bvh, None, false);
+        let a = align_parts(&reference, &bvh, None);
         let before = trimmed_cost(&reference.positions, &bvh, &Rigid::IDENTITY);
         let after = trimmed_cost(&reference.positions, &bvh, &a.motions.motions[0]);
         assert!(after < before * 0.01, "before {before} after {after}");
@@ -373,7 +368,7 @@ mod tests {
         let (reference, input) = (oval(&Rigid::IDENTITY), oval(&turn));
         let bvh = Bvh::new(&input.positions, &input.faces);
         let fits = |previous: Option<&PartMotions>| {
-            let a = align_parts(&reference, &bvh, previous, false);
+            let a = align_parts(&reference, &bvh, previous);
             trimmed_cost(&reference.positions, &bvh, &a.motions.motions[0])
         };
         let (alone, predicted) = (fits(None), fits(Some(&PartMotions { parts: vec![0; reference.positions.len()], motions: vec![turn_z(1.15, [0.0; 3])], pieces: 1 })));
@@ -387,7 +382,7 @@ mod tests {
         let reference = toothed(12, &Rigid::IDENTITY);
         let input = toothed(12, &turn_z(0.09, [0.0; 3]));
         let bvh = Bvh::new(&input.positions, &input.faces);
-        let r = align_parts(&reference, &bvh, None, false).motions.motions[0].rotation;
+        let r = align_parts(&reference, &bvh, None).motions.motions[0].rotation;
         let angle = r[1][0].atan2(r[0][0]);
         assert!((angle - 0.09).abs() < 0.01, "{angle}");
     }
@@ -399,7 +394,7 @@ mod tests {
         assert!(reference.positions.len() > ROUND_SAMPLES);
         let input = toothed(24, &turn_z(0.06, [0.05, 0.0, 0.02]));
         let bvh = Bvh::new(&input.positions, &input.faces);
-        let m = align_parts(&reference, &bvh, None, false).motions.motions[0];
+        let m = align_parts(&reference, &bvh, None).motions.motions[0];
         let angle = m.rotation[1][0].atan2(m.rotation[0][0]);
         assert!((angle - 0.06).abs() < 0.01, "{angle}");
         assert!(trimmed_cost(&reference.positions, &bvh, &m) < 0.01 * trimmed_cost(&reference.positions, &bvh, &Rigid::IDENTITY));
@@ -409,7 +404,7 @@ mod tests {
     fn a_still_part_keeps_no_motion() {
         let m = toothed(8, &Rigid::IDENTITY);
         let bvh = Bvh::new(&m.positions, &m.faces);
-        for (a, b) in align_parts(&m, &bvh, None, false).positions.iter().zip(&m.positions) {
+        for (a, b) in align_parts(&m, &bvh, None).positions.iter().zip(&m.positions) {
             assert!(sub(*a, *b).iter().all(|x| x.abs() < 1e-9));
         }
     }
