@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..mesh import Mesh
-from .meshio import MeshError
+from .errors import MeshError
 from .weld import weld
 
 __all__ = ["read_draco", "dracopy_or_error"]

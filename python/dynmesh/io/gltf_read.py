@@ -41,7 +41,8 @@ from pathlib import Path
 import numpy as np
 
 from ..mesh import Mesh
-from .meshio import MeshError, decode_image
+from .errors import MeshError
+from .image import decode_image
 from .weld import weld
 
 __all__ = ["read_gltf"]

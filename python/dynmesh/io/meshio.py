@@ -26,27 +26,10 @@ import numpy as np
 
 from .. import _core
 from ..mesh import Mesh
+from .errors import MeshError
+from .image import decode_image, read_image
 
 __all__ = ["MeshError", "MeshWarning", "read_mesh", "write_mesh", "read_image", "write_image"]
-
-
-class MeshError(ValueError):
-    """A mesh file that cannot be read or a mesh that cannot be written.
-
-    ``path`` is the file, ``line`` the 1-based line number or None where no line
-    applies (binary data, missing file).
-    """
-
-    def __init__(self, path: str | os.PathLike, message: str, line: int | None = None):
-        self.path = Path(path)
-        self.line = line
-        self.reason = message
-        where = f"{path}: line {line}" if line is not None else f"{path}"
-        super().__init__(f"{where}: {message}")
-
-    def __reduce__(self):
-        # The default would call MeshError(str(self)); keep it picklable across processes.
-        return type(self), (self.path, self.reason, self.line)
 
 
 class MeshWarning(UserWarning):
@@ -102,52 +85,6 @@ def write_mesh(path: str | os.PathLike, mesh: Mesh, *, ascii: bool = False) -> N
         raise MeshError(path, f"unknown mesh format {path.suffix!r} (expected .obj or .ply)")
     _check_writable(path, mesh)
     writer(path, mesh, ascii)
-
-
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-
-
-def read_image(path: str | os.PathLike) -> np.ndarray:
-    """A texture image (PNG, JPEG, anything Pillow reads) as (H, W, 3) uint8 RGB, rows from
-    the top (an alpha channel is dropped). Raises MeshError naming the file when it cannot
-    be read.
-
-    8-bit PNGs are decoded by the core (``_core.read_png``, the GIL released, a third of
-    Pillow's time); other files, and PNGs it leaves alone (16-bit, animated, malformed), by
-    Pillow, so that those keep Pillow's result and its error message."""
-    path = Path(path)
-    try:
-        with open(os.fspath(path), "rb") as f:
-            data = f.read()
-    except (OSError, ValueError) as e:
-        raise MeshError(path, f"cannot read texture image: {e}") from None
-    if data.startswith(_PNG_SIGNATURE):
-        pixels = _core.read_png(data)
-        if pixels is not None:
-            return pixels
-    return _pillow_image(path, path)
-
-
-def decode_image(data: bytes, path: str | os.PathLike) -> np.ndarray:
-    """As ``read_image``, for the bytes of an image held in another file (a glTF's texture):
-    MeshError names ``path``."""
-    if data.startswith(_PNG_SIGNATURE):
-        pixels = _core.read_png(data)
-        if pixels is not None:
-            return pixels
-    import io
-
-    return _pillow_image(io.BytesIO(data), Path(path))
-
-
-def _pillow_image(source, path: Path) -> np.ndarray:
-    from PIL import Image, UnidentifiedImageError
-
-    try:
-        with Image.open(source) as im:
-            return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
-    except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError) as e:
-        raise MeshError(path, f"cannot read texture image: {e}") from None
 
 
 def write_image(path: str | os.PathLike, image: np.ndarray) -> None:

@@ -1,0 +1,59 @@
+"""Reading texture images: PNG through the core (``_core.read_png``), other formats (JPEG)
+and PNGs it does not take (16-bit) through Pillow. Writing is ``meshio.write_image``."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .. import _core
+from .errors import MeshError
+
+__all__ = ["read_image", "decode_image"]
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def read_image(path: str | os.PathLike) -> np.ndarray:
+    """A texture image (PNG, JPEG, anything Pillow reads) as (H, W, 3) uint8 RGB, rows from
+    the top (an alpha channel is dropped). Raises MeshError naming the file when it cannot
+    be read.
+
+    8-bit PNGs are decoded by the core (``_core.read_png``, the GIL released, a third of
+    Pillow's time); other files, and PNGs it leaves alone (16-bit, animated, malformed), by
+    Pillow, so that those keep Pillow's result and its error message."""
+    path = Path(path)
+    try:
+        with open(os.fspath(path), "rb") as f:
+            data = f.read()
+    except (OSError, ValueError) as e:
+        raise MeshError(path, f"cannot read texture image: {e}") from None
+    if data.startswith(_PNG_SIGNATURE):
+        pixels = _core.read_png(data)
+        if pixels is not None:
+            return pixels
+    return _pillow_image(path, path)
+
+
+def decode_image(data: bytes, path: str | os.PathLike) -> np.ndarray:
+    """As ``read_image``, for the bytes of an image held in another file (a glTF's texture):
+    MeshError names ``path``."""
+    if data.startswith(_PNG_SIGNATURE):
+        pixels = _core.read_png(data)
+        if pixels is not None:
+            return pixels
+    import io
+
+    return _pillow_image(io.BytesIO(data), Path(path))
+
+
+def _pillow_image(source, path: Path) -> np.ndarray:
+    from PIL import Image, UnidentifiedImageError
+
+    try:
+        with Image.open(source) as im:
+            return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
+    except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError) as e:
+        raise MeshError(path, f"cannot read texture image: {e}") from None
