@@ -34,6 +34,20 @@ const MIN_NORMAL_COS: f64 = 0.2;
 /// none and 13 %). Shape penalties in the cost, of several forms and weights, did worse on
 /// both counts and reordered the queue so often that decimation took half as long again.
 const MIN_QUALITY: f64 = 0.3;
+/// The [`MIN_QUALITY`] rule yields to a collapse it refused once the collapse that would go
+/// ahead instead costs this many times its quadric error (16 times the distance), errors
+/// below [`ERROR_FLOOR`] counting as that floor. Without a bound, a region whose every collapse
+/// makes a sliver (a flat cap tessellated with needles, as marching cubes leaves when the
+/// surface passes near grid nodes) stays at full density while the target is met by
+/// collapses of any error elsewhere: on a thin disc those were its rim, until base faces cut
+/// through the disc from cap to cap (fused gears, gap 0.1, frame 1: RMS distance from the input
+/// to the base 373 grid units, 3 with this bound). On dancer and basketball_player it changes
+/// nothing.
+const YIELD_RATIO: f64 = 256.0;
+/// Distance, as a fraction of the bounding box's largest side (one grid unit at 12 bits),
+/// below which a refused collapse's error counts as this much for [`YIELD_RATIO`], so that
+/// exactly flat collapses do not yield to the first one with any error.
+const ERROR_FLOOR: f64 = 1.0 / 4096.0;
 /// Faces below this quality count as degenerate: no collapse may make one, even after the
 /// [`MIN_QUALITY`] rule has been relaxed.
 const DEGENERATE_QUALITY: f64 = 1e-3;
@@ -52,18 +66,19 @@ const NONE: u32 = u32::MAX;
 /// keeps at least one face and the target is missed only when such collapses are all that
 /// is left. Collapses that would leave a sliver (a face about as thin as a 10-degree needle,
 /// where the neighbourhood had none) are refused too, until that rule alone stands between
-/// the mesh and the target. Open boundaries are held in place by constraint quadrics.
+/// the mesh and the target, or until the collapses left cost far more error ([`YIELD_RATIO`]). Open boundaries are held in place by constraint quadrics.
 /// Vertices that were never moved keep their input coordinates bit for bit. Deterministic:
 /// the same input gives the same output on every run and machine.
 pub fn decimate(positions: &[[f64; 3]], faces: &[[u32; 3]], target_faces: usize) -> Mesh {
     let faces = clean_faces(positions, faces);
     let finite: Vec<[f64; 3]> =
         positions.iter().copied().filter(|p| p.iter().all(|c| c.is_finite())).collect();
-    let center = match bounds(&finite) {
-        Some((lo, hi)) => scale(add(lo, hi), 0.5),
-        None => [0.0; 3],
+    let (center, side) = match bounds(&finite) {
+        Some((lo, hi)) => (scale(add(lo, hi), 0.5), (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max)),
+        None => ([0.0; 3], 0.0),
     };
     let mut state = State::new(positions, center, faces);
+    state.error_floor = (ERROR_FLOOR * side).powi(2);
     // One pass normally suffices. Another retries the edges that were refused and became
     // legal only because their one-ring (not their ends) changed; when one makes no progress,
     // the sliver rule yields.
@@ -144,6 +159,11 @@ struct State {
     /// Live edges at each vertex.
     vertex_edges: Vec<Vec<u32>>,
     queue: EdgeQueue,
+    /// Edges the [`MIN_QUALITY`] rule refused, keyed by the cost the queue's front must
+    /// exceed before the rule yields to them ([`YIELD_RATIO`]).
+    deferred: EdgeQueue,
+    /// Squared distance below which a deferred collapse's error counts as this ([`ERROR_FLOOR`]).
+    error_floor: f64,
     /// Whether the [`MIN_QUALITY`] rule applies; dropped when it alone stands between the
     /// mesh and the target.
     strict_shapes: bool,
@@ -175,6 +195,8 @@ impl State {
             edges: Vec::new(),
             vertex_edges: degree.iter().map(|&d| Vec::with_capacity(d + 2)).collect(),
             queue: EdgeQueue::new(0),
+            deferred: EdgeQueue::new(0),
+            error_floor: 0.0,
             tally: vec![0; n],
             strict_shapes: true,
         };
@@ -220,6 +242,7 @@ impl State {
             }
         }
         self.queue = EdgeQueue::new(self.edges.len());
+        self.deferred = EdgeQueue::new(self.edges.len());
     }
 
     fn add_edge_constraint(&mut self, u: u32, v: u32, f: u32) {
@@ -241,6 +264,7 @@ impl State {
     /// of it when no placement has a finite error).
     fn requeue(&mut self, e: u32) {
         let [a, b] = self.edges[e as usize];
+        self.deferred.remove(e);
         if a == NONE {
             return;
         }
@@ -255,10 +279,18 @@ impl State {
     /// Collapses cheapest-first until the target is met or the queue runs dry.
     fn drain(&mut self, target: usize) {
         while self.live_faces > target {
-            let Some((e, queued_cost)) = self.queue.front() else { break };
+            let front = self.queue.front();
+            if let Some((d, key)) = self.deferred.front() {
+                if front.map_or(true, |(_, cost)| key < cost) {
+                    self.yield_to(d);
+                    continue;
+                }
+            }
+            let Some((e, queued_cost)) = front else { break };
             let [a, b] = self.edges[e as usize];
-            let Some(p) = self.evaluate(a, b) else {
+            let Some(p) = self.evaluate(a, b, self.strict_shapes) else {
                 self.queue.remove(e);
+                self.defer(e);
                 continue;
             };
             // The shape checks ruled out the cheapest placement, and the next is dearer than
@@ -272,6 +304,30 @@ impl State {
                 continue;
             }
             self.collapse(e, p);
+        }
+    }
+
+    /// Keeps edge `e`, which the [`MIN_QUALITY`] rule alone refused, until the queue's front
+    /// costs [`YIELD_RATIO`] times as much as collapsing it.
+    fn defer(&mut self, e: u32) {
+        if !self.strict_shapes {
+            return;
+        }
+        let [a, b] = self.edges[e as usize];
+        if let Some(p) = self.evaluate(a, b, false) {
+            let area = self.quadric[a as usize] + self.quadric[b as usize];
+            self.deferred.set(e, YIELD_RATIO * p.cost.max(self.error_floor * area.area()));
+        }
+    }
+
+    /// Collapses the deferred edge `e` without the [`MIN_QUALITY`] rule, if it still may.
+    fn yield_to(&mut self, e: u32) {
+        self.deferred.remove(e);
+        let [a, b] = self.edges[e as usize];
+        if let Some(p) = self.evaluate(a, b, false) {
+            if self.topology_allows(a, b) {
+                self.collapse(e, p);
+            }
         }
     }
 
@@ -318,6 +374,7 @@ impl State {
             if x == a || self.tally[x as usize] == 1 {
                 self.edges[e as usize] = [NONE; 2];
                 self.queue.remove(e);
+                self.deferred.remove(e);
                 self.vertex_edges[x as usize].retain(|&g| g != e);
             } else {
                 self.edges[e as usize] = [a.min(x), a.max(x)];

@@ -146,6 +146,12 @@ impl Quadric {
         })
     }
 
+    /// The summed weights of its planes (`a00 + a11 + a22`): the area a sum of
+    /// [`Quadric::from_triangle`] stands for, so that error / area is a mean squared distance.
+    pub fn area(&self) -> f64 {
+        self.m[0] + self.m[4] + self.m[7]
+    }
+
     /// The ten stored coefficients, `a00 a01 a02 a03 a11 a12 a13 a22 a23 a33`.
     pub fn coefficients(&self) -> [f64; 10] {
         self.m

@@ -18,10 +18,10 @@ impl State {
     }
 
     /// Cheapest legal placement for collapsing `(a, b)`, or `None` when every candidate of
-    /// [`State::candidates`] folds a face or makes a sliver.
-    pub(super) fn evaluate(&self, a: u32, b: u32) -> Option<Placement> {
+    /// [`State::candidates`] folds a face or (with `strict`) makes a sliver.
+    pub(super) fn evaluate(&self, a: u32, b: u32, strict: bool) -> Option<Placement> {
         let mut candidates = self.candidates(a, b).into_iter().filter(|c| c.cost.is_finite());
-        candidates.find(|c| self.shapes_allow(a, b, c.pos))
+        candidates.find(|c| self.shapes_allow(a, b, c.pos, strict))
     }
 
     /// The summed quadric of `(a, b)`, its optimal point when that is well defined and near
@@ -54,10 +54,10 @@ impl State {
     }
 
     /// Whether collapsing `(a, b)` to `p` keeps every surviving face from folding over or
-    /// degenerating (see [`face_change`]) and, while `self.strict_shapes` holds, leaves no face
+    /// degenerating (see [`face_change`]) and, with `strict`, leaves no face
     /// below [`MIN_QUALITY`] unless its neighbourhood already had a worse one. Judging the
     /// neighbourhood rather than each face lets collapses that clear slivers away go ahead.
-    fn shapes_allow(&self, a: u32, b: u32, p: [f64; 3]) -> bool {
+    fn shapes_allow(&self, a: u32, b: u32, p: [f64; 3], strict: bool) -> bool {
         let mut worst_new = f64::INFINITY;
         for (f, v) in self.one_ring(a, b) {
             let face = self.faces[f as usize];
@@ -69,7 +69,7 @@ impl State {
             worst_new = worst_new.min(ratio);
         }
         let floor = MIN_QUALITY * MIN_QUALITY / 12.0;
-        !self.strict_shapes || worst_new >= floor || worst_new >= self.worst_shape(a, b)
+        !strict || worst_new >= floor || worst_new >= self.worst_shape(a, b)
     }
 
     /// The faces around `a` and `b`, each with the end it was found at (the faces on the edge
