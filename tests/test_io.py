@@ -645,3 +645,17 @@ def test_a_fortran_ordered_texture_is_written_pixel_for_pixel(tmp_path):
     image = np.random.default_rng(5).integers(0, 256, (6, 10, 3), dtype=np.uint8)
     write_image(tmp_path / "f.png", np.asfortranarray(image))
     assert np.array_equal(read_image(tmp_path / "f.png"), image)
+
+
+def test_the_core_reads_fortran_ordered_arrays_row_by_row():
+    # A Fortran-ordered array is contiguous in memory too, but column by column: the core
+    # must read it by rows (it once borrowed the memory as it lay and scrambled the rows).
+    from dynmesh import _core
+
+    rng = np.random.default_rng(6)
+    rows = rng.random((5, 3))
+    faces = rng.integers(0, 5, (4, 3))
+    assert bytes(_core.format_rows(np.asfortranarray(rows), "v")) == bytes(_core.format_rows(rows, "v"))
+    assert bytes(_core.format_obj_faces(np.asfortranarray(faces), None)) == bytes(_core.format_obj_faces(faces, None))
+    image = rng.integers(0, 256, (6, 10, 3), dtype=np.uint8)
+    assert bytes(_core.encode_png(np.asfortranarray(image))) == bytes(_core.encode_png(image))

@@ -45,9 +45,10 @@ fn rgb_rows<'a>(image: &'a PyReadonlyArray3<'_, u8>) -> PyResult<(u32, u32, std:
     let (Ok(h), Ok(w)) = (h, w) else {
         return Err(PyValueError::new_err(format!("image of shape {shape:?} is too large for PNG")));
     };
-    let data = match image.as_slice() {
-        Ok(s) => std::borrow::Cow::Borrowed(s),
-        Err(_) => std::borrow::Cow::Owned(image.as_array().iter().copied().collect()),
+    // A Fortran-ordered array is contiguous too, but not in row order: only C order is borrowed.
+    let data = match image.as_slice().ok().filter(|_| image.is_c_contiguous()) {
+        Some(s) => std::borrow::Cow::Borrowed(s),
+        None => std::borrow::Cow::Owned(image.as_array().iter().copied().collect()),
     };
     Ok((w, h, data))
 }

@@ -34,6 +34,7 @@
 use std::borrow::Cow;
 
 use numpy::ndarray::Array2;
+use numpy::PyUntypedArrayMethods;
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
 use pyo3::create_exception;
 use pyo3::exceptions::PyValueError;
@@ -378,9 +379,10 @@ pub(crate) fn contiguous<'a, T: numpy::Element + Copy>(a: &'a PyReadonlyArray2<'
     if v.ncols() != width {
         return Err(PyValueError::new_err(format!("{what} must have shape (N, {width})")));
     }
-    Ok(match a.as_slice() {
-        Ok(s) => Cow::Borrowed(s),
-        Err(_) => Cow::Owned(v.iter().copied().collect()),
+    // A Fortran-ordered array is contiguous too, but not row by row: only C order is borrowed.
+    Ok(match a.as_slice().ok().filter(|_| a.is_c_contiguous()) {
+        Some(s) => Cow::Borrowed(s),
+        None => Cow::Owned(v.iter().copied().collect()),
     })
 }
 
