@@ -13,7 +13,8 @@ from pathlib import Path
 # `dynmesh decode` needs none of them, and importing them would cost it more than decoding.
 from .cli_args import (EXIT_ERROR, EXIT_INTERRUPTED, EXIT_PIPE_CLOSED, EXIT_STATUS_HELP, MAX_GRID_SIZE, Parser,
                        common_args, grid_size, non_negative, parallel_args, parse, sequence_args)
-from .cli_output import Progress, frame_text, metrics_text, run_text
+from .cli_demo import cmd_demo, cmd_synth
+from .cli_output import Progress, frame_text, metrics_text, run_text, table
 from .cli_paths import check_decode_directory, check_output_directory, check_output_file, remove_stale_frames
 from .defaults import ENCODER, INTER_MODES, LIFTINGS, MAX_REFERENCES, TEXTURE, TEXTURE_CODECS, base_ratio_rule, texture_qp_rule
 from .io import StagedDirectory, mesh_inputs, refuse_inputs, resolve_sequence
@@ -38,14 +39,6 @@ def _read_meshes(a, paths: list[Path], desc: str = "reading") -> list:
             meshes.append(read_mesh(p))
             bar.step()
     return meshes
-
-
-def _table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
-    """Fixed-width table; columns are (key, heading, format)."""
-    cells = [[format(r[k], f) for k, _, f in columns] for r in rows]
-    widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, (_, h, _) in enumerate(columns)]
-    line = lambda vals: "  ".join(v.rjust(w) for v, w in zip(vals, widths))
-    return "\n".join([line([h for _, h, _ in columns])] + [line(c) for c in cells])
 
 
 def _encoder_options(a) -> dict:
@@ -111,7 +104,7 @@ def cmd_encode(a) -> dict:
     summary = {"output": str(a.output), "bytes": size, "texture_bytes": result.texture_bytes,
                "frames": frames, "options": {**_encoder_options(a), **(result.texture_options or {})}}
     if not a.json:
-        print(_table(frames, [("frame", "frame", "d"), ("type", "type", "s"), ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
+        print(table(frames, [("frame", "frame", "d"), ("type", "type", "s"), ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"),
                               ("displacement_bytes", "disp B", "d"), ("base_faces", "base faces", "d"),
                               ("refreshed_faces", "refreshed", "d"), ("output_faces", "out faces", "d"), ("seconds", "seconds", ".3f")]))
         of_texture = f" ({result.texture_bytes} of them texture)" if result.texture_bytes else ""
@@ -349,7 +342,7 @@ def cmd_info(a) -> dict:
         rows = [{"frame": i, **f, "ref": "-" if f.get("reference") is None else str(f["reference"]),
                  "status": f"damaged at byte {lost[i]['offset']}" if i in lost else "ok"}
                 for i, f in enumerate(result["frames"])]
-        print(_table(rows, [("frame", "frame", "d"), ("type", "type", "s"), ("ref", "ref", "s"), ("qp", "qp", "d"),
+        print(table(rows, [("frame", "frame", "d"), ("type", "type", "s"), ("ref", "ref", "s"), ("qp", "qp", "d"),
                             ("bytes", "bytes", "d"), ("base_bytes", "base B", "d"), ("refresh_bytes", "refresh B", "d"),
                             ("displacement_bytes", "disp B", "d"), ("texture_bytes", "texture B", "d"),
                             ("status", "status", "s")]))
@@ -377,7 +370,7 @@ def cmd_metrics(a) -> dict:
         rows = [{"frame": i, **f} for i, f in enumerate(result["frames"])]
         colour = [("y_psnr", "Y PSNR", ".3f"), ("cb_psnr", "Cb PSNR", ".3f"), ("cr_psnr", "Cr PSNR", ".3f")]
         colour = colour if "y_psnr" in result else []
-        print(_table(rows, [("frame", "frame", "d"), ("d1_psnr", "D1 PSNR", ".3f"), ("d2_psnr", "D2 PSNR", ".3f")] + colour))
+        print(table(rows, [("frame", "frame", "d"), ("d1_psnr", "D1 PSNR", ".3f"), ("d2_psnr", "D2 PSNR", ".3f")] + colour))
         of_texture = (f", Y {result['y_psnr']:.3f} dB, Cb {result['cb_psnr']:.3f} dB, Cr {result['cr_psnr']:.3f} dB"
                       if colour else "")
         identical = " (infinite: the sampled geometry is identical)" if result["d1_psnr"] == float("inf") else ""
@@ -411,80 +404,6 @@ def _metrics(refs: list, decs: list, peak: float | None, grid_size: int, on_fram
     keys = ("d1_psnr", "d2_psnr") + (("y_psnr", "cb_psnr", "cr_psnr") if textured else ())
     mean = {k: float(np.mean([f[k] for f in frames])) for k in keys}
     return {"peak": peak, "frames": frames, **mean}
-
-
-def cmd_synth(a) -> dict:
-    from . import synth
-
-    check_output_directory(a.output)
-    resolution = {} if a.resolution is None else {"resolution": a.resolution}
-    meshes = {
-        "metaballs": lambda: synth.synth_sequence(frames=a.frames, seed=a.seed, **resolution),
-        "fused-gears": lambda: synth.fused_gear_sequence(frames=a.frames, **resolution),
-        "cloth": lambda: synth.cloth_sequence(frames=a.frames, **resolution),
-    }[a.kind]()
-    paths = synth.write_sequence(meshes, a.output)
-    if not a.json:
-        print(f"wrote {len(paths)} frames to {a.output}")
-    return {"frames": [str(p) for p in paths]}
-
-
-def cmd_demo(a) -> dict:
-    import tempfile
-
-    from .eval.report import bd_rate
-    from .synth import synth_sequence, write_sequence
-
-    if a.workdir:
-        check_output_directory(a.workdir, what="work directory")
-    work = Path(a.workdir) if a.workdir else Path(tempfile.mkdtemp(prefix="dynmesh-demo-"))
-    meshes = synth_sequence(frames=a.frames, cycle=min(1.0, DEMO_STEP * max(a.frames - 1, 1)))
-    paths = write_sequence(meshes, work / "input")
-    raw = sum(p.stat().st_size for p in paths)
-    rows = [_demo_rate(meshes, raw, qp, work) for qp in a.qps]
-    saving = bd_rate([(r["intra_bytes"], r["intra_d1"]) for r in rows], [(r["bytes"], r["d1_psnr"]) for r in rows])
-    if not a.json:
-        print(f"synthetic sequence: {len(meshes)} frames, {min(m.vertex_count for m in meshes)}-"
-              f"{max(m.vertex_count for m in meshes)} vertices, every frame with its own connectivity, "
-              f"raw OBJ {raw} bytes; files in {work}")
-        print(_table(rows, [("qp", "QP", "d"), ("bytes", "bytes", "d"), ("ratio", "vs OBJ", ".0f"), ("types", "frame types", "s"),
-                            ("d1_psnr", "D1 PSNR", ".2f"), ("d2_psnr", "D2 PSNR", ".2f"),
-                            ("intra_bytes", "all-intra bytes", "d"), ("intra_d1", "all-intra D1", ".2f"),
-                            ("enc_ms", "enc ms/frame", ".1f"), ("dec_ms", "dec ms/frame", ".1f")]))
-        value = saving["bd_rate"]
-        verdict = "n/a" if value is None else f"{value:+.1f} %"
-        print(f"predicted (P) frames against all-intra coding of the same frames: D1 BD-rate {verdict}"
-              f"{' (' + saving['note'] + ')' if saving['note'] else ''}; negative = fewer bits for the same quality")
-    return {"workdir": str(work), "raw_bytes": raw, "rates": rows, "bd_rate_vs_all_intra": saving}
-
-
-# The demo's share of the synthetic motion per frame: 8 frames over a quarter of it move
-# about as much per frame as a 30 fps capture, where predicted frames pay.
-DEMO_STEP = 0.25 / 7
-
-
-def _demo_rate(meshes, raw: int, qp: int, work: Path) -> dict:
-    """One QP of the demo: the default encoder and all-intra, decoded, measured and kept."""
-    from . import api
-    from .io import write_mesh
-
-    t0 = time.perf_counter()
-    result = api.encode_frames(meshes, qp=qp)
-    enc_s = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    decoded = list(api.decode(result.data))
-    dec_s = time.perf_counter() - t0
-    m = api.metrics(meshes, decoded)
-    intra = api.encode_frames(meshes, qp=qp, intra_period=1, keep_reconstructions=True)
-    mi = api.metrics(meshes, intra.reconstructions)
-    api.write_bytes_atomic(work / f"demo_qp{qp}.dmsh", result.data)
-    (work / f"decoded_qp{qp}").mkdir(exist_ok=True)
-    for i, mesh in enumerate(decoded):
-        write_mesh(work / f"decoded_qp{qp}" / f"frame_{i:04d}.obj", mesh)
-    return {"qp": qp, "bytes": len(result.data), "ratio": raw / len(result.data),
-            "types": "".join(f["type"] for f in result.frames), "d1_psnr": m["d1_psnr"], "d2_psnr": m["d2_psnr"],
-            "intra_bytes": len(intra.data), "intra_d1": mi["d1_psnr"],
-            "enc_ms": 1000 * enc_s / len(meshes), "dec_ms": 1000 * dec_s / len(meshes)}
 
 
 #: What `dynmesh eval` needs beyond the codec (the `eval` extra): the Draco baseline and the
@@ -547,11 +466,11 @@ def cmd_eval(a) -> dict:
         page = report.write_report(results, a.report, a.report_file, command=command)
     if not a.json:
         fmt = lambda v, f: "n/a" if v is None else format(v, f)  # noqa: E731
-        table = [{"sequence": r["sequence"], "variant": r["variant"], "d1": fmt(r["d1_bd"], "+.2f"),
+        bd_rows = [{"sequence": r["sequence"], "variant": r["variant"], "d1": fmt(r["d1_bd"], "+.2f"),
                   "d2": fmt(r["d2_bd"], "+.2f"), "enc": fmt(r["enc_ratio"] and 100 * r["enc_ratio"], ".1f"),
                   "dec": fmt(r["dec_ratio"] and 100 * r["dec_ratio"], ".1f")} for r in rows]
         print(f"BD-rate against {results['anchor']} (PCHIP; time = test/anchor, geometric mean over rates)")
-        print(_table(table, [("sequence", "sequence", "s"), ("variant", "variant", "s"), ("d1", "D1 BD-rate %", "s"),
+        print(table(bd_rows, [("sequence", "sequence", "s"), ("variant", "variant", "s"), ("d1", "D1 BD-rate %", "s"),
                              ("d2", "D2 BD-rate %", "s"), ("enc", "enc time %", "s"), ("dec", "dec time %", "s")]))
         what = ("report rebuilt from saved results" if a.report_only else
                 f"{len(results['runs'])} runs ({counts['measured']} measured, {counts['reused']} reused)")

@@ -148,3 +148,11 @@ def run_text(run_id: str, record: dict, reused: bool) -> str:
     if record.get("d1_psnr") is not None:
         parts.append(f"D1 {record['d1_psnr']:.2f} dB")
     return f"{run_id}: " + ", ".join(parts) + (" (saved result reused)" if reused else " (measured)")
+
+
+def table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:
+    """Fixed-width table; columns are (key, heading, format)."""
+    cells = [[format(r[k], f) for k, _, f in columns] for r in rows]
+    widths = [max([len(h)] + [len(c[i]) for c in cells]) for i, (_, h, _) in enumerate(columns)]
+    line = lambda vals: "  ".join(v.rjust(w) for v, w in zip(vals, widths))
+    return "\n".join([line([h for _, h, _ in columns])] + [line(c) for c in cells])
