@@ -70,9 +70,10 @@ fn motion_parts(piece: &[[f64; 3]], faces: &[[u32; 3]], input: &Bvh, whole: Rigi
     }
     let seeds = farthest_seeds(piece, k);
     let region = nearest_seed(piece, &seeds);
-    let members: Vec<Vec<[f64; 3]>> = (0..k).map(|r| (0..piece.len()).filter(|&v| region[v] == r as u32).map(|v| piece[v]).collect()).collect();
+    let members = grouped(piece, &region, k);
     let mut motions = vec![whole];
-    motions.extend(seeds.iter().zip(&members).map(|(&s, pts)| part_motion(pts, input, predicted(s))));
+    // A region is empty only where seeds coincide (vertices at one place); it has no motion.
+    motions.extend(seeds.iter().zip(&members).map(|(&s, pts)| if pts.is_empty() { whole } else { part_motion(pts, input, predicted(s)) }));
     let motions = distinct(motions, piece);
     let cells = nearest_seed(piece, &farthest_seeds(piece, (piece.len() / CHOICE_SIZE).max(k)));
     let chosen = propagated(&cell_choices(piece, &cells, input, &motions), &cell_neighbours(faces, &cells));
@@ -88,11 +89,8 @@ fn motion_parts(piece: &[[f64; 3]], faces: &[[u32; 3]], input: &Bvh, whole: Rigi
     let mut label: Vec<u32> = cells.iter().map(|&c| part_of_motion(chosen[c as usize])).collect();
     let parts: Vec<Rigid> = used
         .iter()
-        .enumerate()
-        .map(|(p, &m)| {
-            let pts: Vec<[f64; 3]> = (0..piece.len()).filter(|&v| label[v] == p as u32).map(|v| piece[v]).collect();
-            if m == 0 || pts.is_empty() { motions[m].1 } else { refined_motion(&pts, input, motions[m].1) }
-        })
+        .zip(grouped(piece, &label, used.len()))
+        .map(|(&m, pts)| if m == 0 || pts.is_empty() { motions[m].1 } else { refined_motion(&pts, input, motions[m].1) })
         .collect();
     follow_contact(piece, faces, input, &parts, &mut label);
     Some((label, parts))
@@ -119,6 +117,16 @@ fn farthest_seeds(points: &[[f64; 3]], k: usize) -> Vec<usize> {
 /// The index of the largest value (the first of equal ones); 0 for none.
 fn argmax(values: impl Iterator<Item = f64>) -> usize {
     values.enumerate().fold((0, f64::NEG_INFINITY), |best, (i, v)| if v > best.1 { (i, v) } else { best }).0
+}
+
+/// The points of each label, in order: at least `count` groups (empty ones for labels no
+/// point has).
+fn grouped(points: &[[f64; 3]], labels: &[u32], count: usize) -> Vec<Vec<[f64; 3]>> {
+    let mut groups: Vec<Vec<[f64; 3]>> = piece_members(labels).iter().map(|m| m.iter().map(|&v| points[v]).collect()).collect();
+    if groups.len() < count {
+        groups.resize(count, Vec::new());
+    }
+    groups
 }
 
 /// The index in `seeds` of the seed nearest to each point (the first of equally near ones).
@@ -154,15 +162,14 @@ fn distinct(motions: Vec<Rigid>, points: &[[f64; 3]]) -> Vec<(usize, Rigid)> {
 /// `None` where two motions fit about equally (a flat cap turning about its normal, a rim
 /// sliding along itself), for [`propagated`] to decide.
 fn cell_choices(piece: &[[f64; 3]], cells: &[u32], input: &Bvh, motions: &[(usize, Rigid)]) -> Vec<Option<usize>> {
-    let count = cells.iter().map(|&c| c as usize + 1).max().unwrap_or(0);
-    let mut members: Vec<Vec<[f64; 3]>> = vec![Vec::new(); count];
-    for (&c, &p) in cells.iter().zip(piece) {
-        members[c as usize].push(p);
-    }
+    let members = grouped(piece, cells, 0);
     let own: Vec<usize> = (0..motions.len()).filter(|&i| motions[i].0 == i).collect();
     members
         .iter()
         .map(|pts| {
+            if pts.is_empty() {
+                return None;
+            }
             let mut costs: Vec<(f64, usize)> = own.iter().map(|&i| (trimmed_cost(pts, input, &motions[i].1), i)).collect();
             costs.sort_by(|a, b| a.0.total_cmp(&b.0));
             match costs.as_slice() {
