@@ -354,3 +354,128 @@ def test_the_module_api_loads_seeks_to_a_predicted_frame_with_its_texture_and_pl
     assert shown[shown.index(k):] == list(range(k, 8)) and set(shown[:shown.index(k)]) <= {0}, shown
     assert out["events"][-1] == ["ended", None], out["events"]
     assert out["end"]["frame"] == 7 and not out["end"]["playing"]
+
+
+class SlowServer:
+    """A static server (threads, in this process) for an exported page whose ``stream.dmsh``
+    arrives slowly: with its Content-Length, in ``pieces`` parts ``pause`` seconds apart, the
+    last part held back until the page asks for ``/release`` (or ``hold`` seconds pass)."""
+
+    def __init__(self, directory: Path, pieces: int = 10, pause: float = 0.15, hold: float = 30.0):
+        import http.server
+        import threading
+        import time
+
+        self.released = threading.Event()
+        self.released_by_page = None  # whether the page asked for the tail, before `hold` ran out
+        self.finished = False  # the stream's last byte was sent
+        outer = self
+
+        class Handler(http.server.SimpleHTTPRequestHandler):
+            def __init__(self, *args, **kwargs):
+                super().__init__(*args, directory=str(directory), **kwargs)
+
+            def log_message(self, *args):
+                pass
+
+            def do_GET(self):
+                if self.path == "/release":
+                    outer.released.set()
+                    self.send_response(204)
+                    self.end_headers()
+                elif self.path == "/stream.dmsh":
+                    data = (directory / "stream.dmsh").read_bytes()
+                    self.send_response(200)
+                    self.send_header("Content-Type", "application/octet-stream")
+                    self.send_header("Content-Length", str(len(data)))
+                    self.end_headers()
+                    cuts = [len(data) * k // pieces for k in range(pieces + 1)]
+                    for k in range(pieces):
+                        if k == pieces - 1:
+                            outer.released_by_page = outer.released.wait(hold)
+                        self.wfile.write(data[cuts[k]:cuts[k + 1]])
+                        self.wfile.flush()
+                        time.sleep(pause)
+                    outer.finished = True
+                else:
+                    super().do_GET()
+
+        self.server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+        self.server.daemon_threads = True
+        self.url = f"http://127.0.0.1:{self.server.server_address[1]}/"
+        threading.Thread(target=self.server.serve_forever, daemon=True).start()
+
+    def close(self):
+        self.released.set()
+        self.server.shutdown()
+        self.server.server_close()
+
+
+STREAMING = """
+const p = window.dynmeshPlayer.player, shown = [];
+const until = (f) => new Promise((resolve, reject) => {
+  const end = performance.now() + 60000;
+  const t = () => (f() ? resolve() : performance.now() > end ? reject(new Error(`timed out: ${f}`)) : setTimeout(t, 10));
+  t();
+});
+p.addEventListener('frame', (e) => shown.push([e.detail.index, p.state.textured, p.texture.groups.length]));
+await until(() => p.state.shown >= 0 || p.state.error);
+const first = { ...p.state, groupsIn: p.texture ? p.texture.groups.length : 0, infosIn: p.infos.filter(Boolean).length };
+p.play();
+await until(() => p.state.error || p.state.shown > first.shown);  // plays on while the stream arrives
+p.pause();
+p.seek(LAST);  // not in yet: shown once it arrives
+await new Promise((resolve) => setTimeout(resolve, 300));
+const waiting = { ...p.state };
+await fetch('/release');  // the server sends the rest only now
+await until(() => p.state.error || p.state.shown === LAST);
+await until(() => p.state.error || p.state.complete && p.state.decoded === p.state.frames);
+const complete = { ...p.state };
+const seeked = new Promise((resolve) => p.addEventListener('frame', (e) => e.detail.index === K && resolve(e.detail)));
+p.seek(K);
+const detail = await seeked;
+return { first, waiting, complete, detail, atSeek: { ...p.state }, shown };
+"""
+
+
+def test_the_exported_page_plays_a_textured_stream_before_its_download_ends_and_seeks(tmp_path):
+    """The page shows the first frame (with its texture) and plays on while the server still
+    holds back the end of the stream, which it sends only when the page asks for it: a page
+    that waited for the whole download would never ask (the server gives up waiting after
+    `hold` seconds, and the test fails)."""
+    needs_browser()
+    frames = _textured(synth_sequence(frames=40, resolution=20)[:12])
+    stream = tmp_path / "s.dmsh"
+    stream.write_bytes(api.encode(frames, qp=30, intra_period=4, texture_size=128, texture_codec="av1", texture_qp=30))
+    info = api.info(stream.read_bytes())
+    types = [f["type"] for f in info["frames"]]
+    k = 6  # a predicted frame of the second texture group
+    assert types[::4] == ["I", "I", "I"] and types[k] == "P", types
+    page = tmp_path / "page"
+    play = [sys.executable, "-m", "dynmesh", "play", str(stream), "--export", str(page)]
+    assert subprocess.run(play, capture_output=True, text=True, timeout=60).returncode == 0
+    server = SlowServer(page)
+    try:
+        body = STREAMING.replace("LAST", "11").replace("K", str(k))
+        out = probe(server.url + "player/index.html", body, tmp_path, wait="window.dynmeshPlayer")
+    finally:
+        server.close()
+    first, complete = out["first"], out["complete"]
+    assert server.released_by_page, "the page showed no frame until the whole stream had arrived"
+    assert server.finished and first["error"] is None and complete["error"] is None
+    # On screen with the first part of the stream: the header (frame count), some frames, and
+    # the texture of the first group, not the whole stream.
+    assert first["frames"] == 12 and not first["complete"] and first["arrived"] < 12
+    assert first["infosIn"] == first["arrived"] and first["bytes"] < stream.stat().st_size
+    assert first["textured"] and first["textureNote"] == "AV1 texture" and first["groupsIn"] < 3
+    # A seek to a frame still on its way waits for it (and then shows it: see `shown`).
+    waiting = out["waiting"]
+    assert waiting["frame"] == 11 and waiting["shown"] != 11 and waiting["arrived"] < 12, waiting
+    starts = [i for i, f in enumerate(info["frames"]) if f["texture_bytes"] > 0]  # of texture groups
+    assert [11, True, len(starts)] in out["shown"] and len(out["shown"]) >= 4, out["shown"]
+    # Every frame shown with its texture group in and the texture on.
+    assert all(textured and groups >= sum(s <= i for s in starts) for i, textured, groups in out["shown"]), out["shown"]
+    assert complete["complete"] and complete["arrived"] == complete["decoded"] == 12 and complete["bytes"] == stream.stat().st_size
+    # Seeking once the stream is in: the predicted frame, with its texture.
+    assert out["detail"] == {"index": k, "type": "P"}
+    assert out["atSeek"]["shown"] == k and out["atSeek"]["textured"] and out["atSeek"]["error"] is None

@@ -3,14 +3,21 @@
 // WebCodecs (video.js). The player page (player.js) is this plus its controls.
 //
 // Contract: `const p = createPlayer(canvas, {fps = 30, lod = -1 (all levels), loop = true})`;
-// `await p.load(urlOrBytes)` resolves once the stream's header is read (frame count, types);
+// `await p.load(urlOrBytes)` resolves once the stream's header is read (frame count, types).
+// A URL's body is streamed: its chunks go to the worker as they arrive, and each frame is
+// decoded and shown as soon as its bytes (and its texture group's unit) are in, so playback
+// starts before the download ends; playing waits at a frame that has not arrived.
 // `p.play()`, `p.pause()`, `p.seek(i)` (a frame not yet decoded is decoded next, from the
-// nearest intra frame), `p.setLod(k)` (decodes again at level of detail k). Events (an
-// EventTarget): `loaded`, `decoded` {detail: {index}}, `frame` {detail: {index, type}} when a
-// frame is on screen (geometry and its texture together), `ended` when playback reaches the last
-// frame without `loop`, `error` {detail: {message}}. `p.state` holds {frame, shown, faces,
-// lod, advanced, decoded, frames, playing, error, textured, textureNote, view}; `p.infos` the
-// frames' types and sizes; `p.renderer` the camera (orbit, zoom, wireframe).
+// nearest intra frame; one not yet downloaded as soon as it arrives), `p.setLod(k)` (decodes
+// again at level of detail k), `p.destroy()`. Events (an EventTarget): `loaded` (the header),
+// `progress` {detail: {arrived, bytes, complete}} as frames arrive, `decoded` {detail:
+// {index}}, `frame` {detail: {index, type}} when a frame is on screen (geometry and its texture
+// together), `ended` when playback reaches the last frame without `loop`, `error` {detail:
+// {message}}. `p.state` holds {frame, shown, faces, lod, advanced, decoded, frames, arrived
+// (frames whose bytes are in), bytes, complete (the whole stream is in and checked), playing,
+// error, textured, textureNote, view}; `p.infos` the frames' types and sizes (null until a
+// frame arrives); `p.renderer` the camera (orbit, zoom, wireframe), fitted when the first
+// frame is decoded to the intra frames in by then.
 
 import { Renderer } from './renderer.js';
 import { TexturePlayer } from './video.js';
@@ -25,47 +32,87 @@ export class DynmeshPlayer extends EventTarget {
     this.renderer = new Renderer(canvas);
     this.fps = options.fps > 0 ? options.fps : 30;
     this.loop = options.loop ?? true;
-    this.state = { frame: 0, shown: -1, faces: 0, lod: options.lod ?? -1, advanced: 0, decoded: 0, frames: 0, playing: false, error: null, textured: false, textureNote: '', view: null };
+    this.requestedLod = options.lod ?? -1;
+    this.state = { frame: 0, shown: -1, faces: 0, lod: this.requestedLod, advanced: 0, decoded: 0, frames: 0, arrived: 0, bytes: 0, complete: false, playing: false, error: null, textured: false, textureNote: '', view: null };
     this.frames = [];
     this.infos = [];
     this.header = null;
-    this.stream = null;
     this.texture = null;
     this.worker = null;
+    this.reader = null;
     this.token = 0;
     this.last = 0;
     this.destroyed = false;
     requestAnimationFrame((now) => this.tick(now));
   }
 
-  /** Fetches (a URL) or takes (bytes) a stream and starts decoding it; resolves at its header. */
+  /** Fetches (a URL) or takes (bytes) a stream and starts decoding it; resolves at its header.
+   * A URL's body is read as it arrives and passed on to the decoder chunk by chunk. */
   async load(source) {
+    this.stop();
+    let response = null, bytes = null;
     try {
       if (typeof source === 'string' || source instanceof URL) {
-        const response = await fetch(source);
+        response = await fetch(source);
         if (!response.ok) throw new Error(`cannot fetch ${source}: HTTP ${response.status}`);
-        this.stream = await response.arrayBuffer();
       } else {
-        this.stream = source instanceof ArrayBuffer ? source.slice(0) : new Uint8Array(source).slice().buffer;
+        bytes = source instanceof ArrayBuffer ? source.slice(0) : new Uint8Array(source).slice().buffer;
       }
     } catch (e) {
       this.fail(e.message);
       throw e;
     }
     this.header = null;
+    this.infos = [];
+    Object.assign(this.state, { frames: 0, decoded: 0, arrived: 0, bytes: 0, complete: false, error: null });
     const loaded = new Promise((resolve, reject) => {
       const done = () => { this.removeEventListener('error', failed); resolve(this); };
       const failed = (e) => { this.removeEventListener('loaded', done); reject(new Error(e.detail.message)); };
       this.addEventListener('loaded', done, { once: true });
       this.addEventListener('error', failed, { once: true });
     });
-    this.decode(this.state.lod);
+    const worker = this.startWorker();
+    if (bytes) {
+      worker.postMessage({ chunk: bytes }, [bytes]);
+      worker.postMessage({ end: true });
+    } else {
+      this.pump(response, worker);
+    }
     return loaded;
+  }
+
+  /** Passes a response's body to `worker` as it arrives (each chunk's buffer transferred). */
+  async pump(response, worker) {
+    try {
+      if (!response.body) {
+        const all = await response.arrayBuffer();
+        if (worker === this.worker) worker.postMessage({ chunk: all }, [all]);
+      } else {
+        const reader = response.body.getReader();
+        this.reader = reader;
+        for (;;) {
+          const { done, value } = await reader.read();
+          if (worker !== this.worker) return;
+          if (done) break;
+          const whole = value.byteOffset === 0 && value.byteLength === value.buffer.byteLength;
+          const chunk = whole ? value.buffer : value.slice().buffer;
+          worker.postMessage({ chunk }, [chunk]);
+        }
+      }
+      if (worker === this.worker) worker.postMessage({ end: true });
+    } catch (e) {
+      if (worker === this.worker) this.fail(`cannot fetch the stream: ${e.message}`);
+    }
   }
 
   /** Decodes again at level of detail `lod` (-1: all); the frame on screen stays until its new version comes. */
   setLod(lod) {
-    if (this.stream) this.decode(lod);
+    this.requestedLod = lod;
+    if (!this.worker) return;
+    this.frames = [];
+    this.state.decoded = 0;
+    if (this.header) this.state.lod = lod < 0 ? this.header.schemes.length : lod;
+    this.worker.postMessage({ lod: lod < 0 ? null : lod, token: ++this.token, first: this.state.frame });
   }
 
   play() {
@@ -77,17 +124,26 @@ export class DynmeshPlayer extends EventTarget {
     this.state.playing = false;
   }
 
-  /** Shows frame `i` (clamped to the stream) as soon as it is decoded. */
+  /** Shows frame `i` (clamped to the stream) as soon as it is decoded (and, while the stream
+   * is arriving, as soon as its bytes are in). */
   seek(i) {
     const k = Math.max(0, Math.min(this.state.frames - 1, Math.trunc(i)));
     if (!this.frames[k] && this.worker) this.worker.postMessage({ seek: k, token: this.token });
     return this.show(k);
   }
 
-  /** Stops decoding and playing; the canvas keeps its last picture. */
+  /** Stops downloading, decoding and playing; the canvas keeps its last picture. */
   destroy() {
     this.destroyed = true;
+    this.stop();
+  }
+
+  /** Ends the current load: its download and its worker. */
+  stop() {
+    if (this.reader) this.reader.cancel().catch(() => {});
     if (this.worker) this.worker.terminate();
+    this.reader = null;
+    this.worker = null;
   }
 
   fail(message) {
@@ -95,36 +151,54 @@ export class DynmeshPlayer extends EventTarget {
     this.dispatchEvent(new CustomEvent('error', { detail: { message } }));
   }
 
-  decode(lod) {
-    if (this.worker) this.worker.terminate();
+  startWorker() {
     this.frames = [];
-    this.state.decoded = 0;
     const my = ++this.token;
-    this.worker = new Worker(new URL('./worker.js', import.meta.url), { type: 'module' });
-    this.worker.onmessage = ({ data }) => {
-      if (data.token !== my) return;
+    const worker = new Worker(new URL('./worker.js', import.meta.url), { type: 'module' });
+    this.worker = worker;
+    worker.onmessage = ({ data }) => {
+      if (worker !== this.worker) return; // a previous load's
       if (data.error) this.fail(data.error);
-      else if (data.header) this.setup(data.header, data.infos, data.view, lod);
-      else if (data.frame) this.received(data.frame);
+      else if (data.header) this.setup(data.header);
+      else if (data.texture) this.addTexture(data.texture);
+      else if (data.infos) this.arrived(data);
+      else if (data.view) this.fit(data.view);
+      else if (data.token === this.token && data.frame) this.received(data.frame);
     };
-    this.worker.onerror = (e) => this.fail(e.message || 'the decoder worker failed');
-    this.worker.postMessage({ stream: this.stream.slice(0), lod: lod < 0 ? undefined : lod, token: my, first: this.state.frame });
+    worker.onerror = (e) => this.fail(e.message || 'the decoder worker failed');
+    const lod = this.requestedLod;
+    worker.postMessage({ start: { lod: lod < 0 ? null : lod, token: my, first: this.state.frame } });
+    return worker;
   }
 
-  setup(header, infos, view, lod) {
-    const first = this.header === null;
+  setup(header) {
     this.header = header;
-    this.infos = infos;
-    this.state.frames = infos.length;
-    this.state.lod = lod < 0 ? header.schemes.length : lod;
-    if (first) {
-      this.renderer.fit(view.lo, view.hi, view.front);
-      this.state.view = view;
-      this.texture = new TexturePlayer(new Uint8Array(this.stream), infos);
-      this.state.textured = this.texture.textured;
-      this.state.textureNote = this.texture.note;
-    }
+    this.infos = new Array(header.frameCount).fill(null);
+    this.state.frames = header.frameCount;
+    this.state.lod = this.requestedLod < 0 ? header.schemes.length : this.requestedLod;
+    this.texture = new TexturePlayer();
+    this.state.textured = false;
+    this.state.textureNote = '';
     this.dispatchEvent(new Event('loaded'));
+  }
+
+  addTexture({ first, payload }) {
+    this.texture.add(first, new Uint8Array(payload));
+    this.state.textured = this.texture.textured;
+    this.state.textureNote = this.texture.note;
+  }
+
+  arrived({ arrived, infos, bytes, complete }) {
+    infos.forEach((info, k) => { this.infos[arrived - infos.length + k] = info; });
+    Object.assign(this.state, { arrived, bytes, complete });
+    this.dispatchEvent(new CustomEvent('progress', { detail: { arrived, bytes, complete } }));
+  }
+
+  /** The default camera, from the sequence's box (see worker.js). */
+  fit(view) {
+    this.renderer.fit(view.lo, view.hi, view.front);
+    this.state.view = view;
+    if (this.frames[this.state.shown]) this.renderer.draw();
   }
 
   received(frame) {

@@ -33,6 +33,7 @@ async function start() {
   player.addEventListener('error', (e) => status(`error: ${e.detail.message}`));
   player.addEventListener('loaded', loaded, { once: true });
   player.addEventListener('decoded', refresh);
+  player.addEventListener('progress', refresh);
   player.addEventListener('frame', refresh);
   bind();
   player.load(url).catch(() => {}); // reported by the error event
@@ -57,7 +58,8 @@ function refresh() {
 function describe() {
   const s = player.state, f = player.frames[s.frame];
   const note = s.textureNote ? ` - ${s.textureNote}` : '';
-  return `${s.decoded}/${s.frames} frames decoded, ${player.fps} fps, frame ${s.frame}: ${f ? f.faces.length / 3 : 0} faces${note}`;
+  const arriving = s.complete ? '' : `${s.arrived}/${s.frames} frames downloaded, `;
+  return `${arriving}${s.decoded}/${s.frames} frames decoded, ${player.fps} fps, frame ${s.frame}: ${f ? f.faces.length / 3 : 0} faces${note}`;
 }
 
 function seek(i) {
@@ -84,9 +86,10 @@ function drawTimeline() {
   const g = c.getContext('2d');
   g.clearRect(0, 0, w, h);
   if (!infos.length) return;
-  const most = Math.max(...infos.map((f) => f.bytes + f.textureBytes));
+  const most = Math.max(1, ...infos.map((f) => (f ? f.bytes + f.textureBytes : 0)));
   const bw = w / infos.length;
   infos.forEach((f, i) => {
+    if (!f) return; // not downloaded yet
     const bh = Math.max(2, (h - 12) * Math.sqrt((f.bytes + f.textureBytes) / most));
     g.fillStyle = player.frames[i] ? (f.type === 'I' ? '#e8913a' : '#4a8fe0') : '#556';
     g.fillRect(i * bw + 0.5, h - bh, Math.max(1, bw - 1), bh);
@@ -95,7 +98,7 @@ function drawTimeline() {
   g.fillStyle = '#fff';
   g.fillRect(k * bw, 0, Math.max(2, bw), 3);
   g.fillStyle = '#9ab';
-  g.fillText(`${f.type} ${f.bytes} B${f.textureBytes ? ` + ${f.textureBytes} B texture` : ''}`, 4, 11);
+  if (f) g.fillText(`${f.type} ${f.bytes} B${f.textureBytes ? ` + ${f.textureBytes} B texture` : ''}`, 4, 11);
 }
 
 function bind() {

@@ -4,7 +4,8 @@
 // HEVC textures are not decoded (browsers generally cannot): the page says so and plays
 // the geometry.
 //
-// Contract: `new TexturePlayer(streamBytes, frameInfos)`; `textured` says whether images
+// Contract: `new TexturePlayer(streamBytes, frameInfos)`, or `new TexturePlayer()` and
+// `add(first, payload)` per texture group as its unit arrives; `textured` says whether images
 // will come, `note` why not; `await image(i)` gives frame i's texture (ImageData) or null.
 // Decoding goes forward through a group's pictures; seeking back restarts the group.
 
@@ -134,28 +135,44 @@ class GroupVideo {
 
 export class TexturePlayer {
   /**
-   * @param {Uint8Array} stream
-   * @param {{textureBytes: number}[]} infos per frame
+   * @param {Uint8Array|null} [stream] the whole stream; or none, and `add` each group as it arrives
+   * @param {{textureBytes: number}[]} [infos] per frame
    */
-  constructor(stream, infos) {
+  constructor(stream = null, infos = []) {
     this.textured = false;
     this.note = '';
     this.cache = new Map();
     this.groups = [];
-    if (!infos.length || infos[0].textureBytes === 0) return;
+    this.queue = Promise.resolve();
+    if (!stream || !infos.length || infos[0].textureBytes === 0) return;
     const dec = new Decoder(stream);
     for (let i = 0; i < infos.length; i++) {
       const p = dec.texturePayload(i);
-      if (p !== null) this.groups.push({ first: i, video: new GroupVideo(readTextureUnit(p)) });
+      if (p !== null) this.add(i, p);
     }
-    const codec = this.groups[0].video.unit.codec;
+  }
+
+  /** Adds the texture group that starts at frame `first` (its texture unit's payload), in
+   * stream order; a group's frames may ask for images once it is added. */
+  add(first, payload) {
+    let video;
+    try {
+      video = new GroupVideo(readTextureUnit(payload));
+    } catch (e) {
+      this.textured = false;
+      this.note = `texture: ${e.message}`;
+      this.groups.push({ first, video: null });
+      return;
+    }
+    this.groups.push({ first, video });
+    if (this.groups.length > 1) return;
+    const codec = video.unit.codec;
     if (codec !== 'av1') this.note = `the ${codec.toUpperCase()} texture cannot be decoded by this browser: playing the geometry`;
     else if (typeof VideoDecoder === 'undefined') this.note = 'this browser has no WebCodecs to decode the AV1 texture: playing the geometry';
     else {
       this.textured = true;
       this.note = 'AV1 texture';
     }
-    this.queue = Promise.resolve();
   }
 
   /** Frame i's texture, or null. Requests are served one at a time, in order. */
@@ -163,6 +180,7 @@ export class TexturePlayer {
     if (!this.textured) return Promise.resolve(null);
     if (this.cache.has(i)) return Promise.resolve(this.cache.get(i));
     const g = this.groups.filter((x) => x.first <= i).pop();
+    if (!g) return Promise.resolve(null); // its group has not arrived
     const run = this.queue.then(async () => {
       if (this.cache.has(i)) return this.cache.get(i);
       const image = await g.video.picture(i - g.first);

@@ -1,55 +1,189 @@
-// Decoding off the page's thread: decodes every frame of a stream at one level of detail and
-// posts each as it is done (float32 positions relative to the grid centre, vertex normals,
-// faces; and, for textured streams, the frame's UVs unwelded per corner). Frames go in order
-// from `first`, except that a frame asked for by a seek is decoded next (the decoder starts
-// it from the nearest intra frame, or a state it holds) and the order goes on after it.
+// Decoding off the page's thread, while the stream arrives: the worker keeps the stream's
+// bytes as they come (chunks from a fetch, or all at once), splits them into units as soon as
+// each is whole, and decodes every frame at one level of detail, posting each as it is done
+// (float32 positions relative to the grid centre, vertex normals, faces; and, for textured
+// streams, the frame's UVs unwelded per corner). A frame can be decoded once its unit is in
+// and, when it starts a texture group, the texture unit after it (docs/bitstream.md, section
+// 3: a group's texture unit follows the group's first frame unit, so the later frames of the
+// group find it there). Frames go in order from `first`, except that a frame asked for by a
+// seek is decoded next, or as soon as it arrives (the decoder starts it from the nearest
+// intra frame, or a state it holds), and the order goes on after it.
 //
-// Messages in: {stream: ArrayBuffer, lod, token, first}, then any number of {token, seek}.
-// Out: {token, header, infos, view}, then {token, frame}, per frame, then {token, done}; or
-// {token, error} with the decoder's message.
+// Messages in: {start: {lod, token, first}}, then {chunk: ArrayBuffer} as bytes arrive and
+// {end: true} after the last; {stream: ArrayBuffer, lod, token, first} is all three at once.
+// Any time after start: {token, seek: i}; {token, lod, first} decodes again at another level
+// of detail, from frame `first` (frames already posted come again; `token` is the new decode's).
+// Out: {token, header} as soon as the sequence header is in; {arrived, infos, bytes, complete}
+// whenever units arrive (`infos` the new frames' types and sizes, in order; `arrived` the
+// frames in so far); {texture: {first, payload}} for each texture group, before any of its
+// frames; {token, view} once, before the first frame; then {token, frame} per frame and
+// {token, done}; or {error} with the decoder's message (a unit that fails its check stops the
+// stream there: the frames decoded by then have been posted).
 
 import { Decoder } from '../src/decoder.js';
+import { readHeader, readUnit, readUnits, INTRA, PREDICTED, TEXTURE_UNIT } from '../src/stream/bitstream.js';
+import { DecodeError } from '../src/error.js';
 import { frameUvs } from '../src/texture/unit.js';
 
+/** A sequence header is under 100 bytes: with this many in and none parsed, the stream is bad. */
+const HEADER_ROOM = 256;
+
+/** The stream as it arrives: bytes, header, units. */
+let input = null;
+/** The decode at one level of detail. */
 let job = null;
 
 self.onmessage = ({ data }) => {
-  if (data.stream) start(data);
-  else if (job && data.token === job.token) job.wanted.push(data.seek);
+  try {
+    if (data.stream) {
+      begin(data);
+      receive(data.stream);
+      finish();
+    } else if (data.start) begin(data.start);
+    else if (data.chunk) receive(data.chunk);
+    else if (data.end) finish();
+    else if (data.lod !== undefined) relod(data.lod, data.token, data.first);
+    else if (job && data.token === job.token) {
+      job.wanted = data.seek;
+      wake();
+    }
+  } catch (e) {
+    fail(e);
+  }
 };
 
-function start({ stream, lod, token, first }) {
-  try {
-    const dec = new Decoder(new Uint8Array(stream), { lod });
-    const h = dec.header;
-    const infos = Array.from({ length: dec.frameCount }, (_, i) => dec.frameInfo(i));
-    const half = (2 ** h.bits - 1) / 2;
-    const centre = h.origin.map((o) => o + half * h.step);
-    const view = sequenceView(new Uint8Array(stream), infos, centre);
-    self.postMessage({ token, header: { ...h, centre, extent: 2 * half * h.step }, infos, view });
-    const n = dec.frameCount;
-    job = { dec, token, centre, uvs: frameUvs(dec), groups: new Map(), sent: new Uint8Array(n), left: n, next: Math.min(first ?? 0, n - 1), wanted: [] };
-    setTimeout(step, 0);
-  } catch (e) {
-    self.postMessage({ token, error: e.message });
+function fail(e) {
+  if (input) input.failed = true;
+  self.postMessage({ error: e.message });
+}
+
+function begin({ lod, token, first }) {
+  input = { bytes: new Uint8Array(1 << 16), filled: 0, header: null, units: [], pos: 0, ended: false, failed: false };
+  job = { token, lod, first: first ?? 0, dec: null };
+}
+
+/** Appends a chunk, splits off the units now whole, and wakes the decoding. */
+function receive(chunk) {
+  if (input.failed) return;
+  const add = new Uint8Array(chunk);
+  if (input.filled + add.length > input.bytes.length) {
+    const grown = new Uint8Array(Math.max(2 * input.bytes.length, input.filled + add.length));
+    grown.set(input.bytes.subarray(0, input.filled));
+    input.bytes = grown;
+  }
+  input.bytes.set(add, input.filled);
+  input.filled += add.length;
+  split();
+}
+
+function finish() {
+  if (input.failed) return;
+  input.ended = true;
+  split();
+  const data = input.bytes.subarray(0, input.filled);
+  if (!input.header || input.units.length < input.header.frameCount || input.pos !== input.filled) {
+    // The whole stream's reading names the problem as the Rust decoder does.
+    readUnits(data, input.header ?? readHeader(data));
+    throw new Error('the stream ends early');
   }
 }
 
-/** Decodes and posts one frame, then yields (so that a seek can come in) and goes on. */
-function step() {
-  let i = job.wanted.pop();
-  job.wanted.length = 0; // only the latest seek matters
-  if (i === undefined || job.sent[i]) {
-    for (i = job.next; job.sent[i]; i = (i + 1) % job.sent.length);
+/** Splits off the header and each unit whose bytes (and texture unit) are all in. */
+function split() {
+  const data = input.bytes.subarray(0, input.filled);
+  if (job.dec) job.dec.data = data;
+  if (!input.header) {
+    try {
+      input.header = readHeader(data);
+    } catch (e) {
+      if (input.ended || input.filled >= HEADER_ROOM) throw e;
+      return;
+    }
+    input.pos = input.header.length;
+    started();
   }
-  try {
-    post(i);
-  } catch (e) {
-    self.postMessage({ token: job.token, error: e.message });
+  const h = input.header, units = input.units, before = units.length;
+  const whole = (pos) => pos + 5 <= data.length && pos + 9 + new DataView(data.buffer, pos + 1, 4).getUint32(0, true) <= data.length;
+  while (units.length < h.frameCount && whole(input.pos)) {
+    const f = units.length, pos = input.pos;
+    const u = readUnit(data, pos, f);
+    if (u.type !== INTRA && u.type !== PREDICTED) throw new DecodeError(f, pos, `unit type ${u.type} where a frame unit was expected`);
+    // Whether a texture unit follows shows in the next byte (or the end of the stream).
+    if (u.next === data.length && !input.ended) break;
+    let texture = null, next = u.next;
+    if (next < data.length && data[next] === TEXTURE_UNIT) {
+      if (!whole(next)) break;
+      const t = readUnit(data, next, f);
+      texture = { offset: t.offset, length: t.length };
+      next = t.next;
+      const payload = data.slice(t.offset, t.offset + t.length).buffer;
+      self.postMessage({ texture: { first: f, payload } }, [payload]);
+    }
+    units.push({ type: u.type, offset: u.offset, length: u.length, texture });
+    input.pos = next;
+  }
+  const complete = input.ended && units.length === h.frameCount && input.pos === input.filled;
+  if (units.length > before || complete) {
+    const infos = [];
+    for (let i = before; i < units.length; i++) infos.push(job.dec.frameInfo(i));
+    self.postMessage({ arrived: units.length, infos, bytes: input.filled, complete });
+    wake();
+  }
+}
+
+/** The header is in: say so, and set up the decoding. */
+function started() {
+  const h = input.header;
+  const half = (2 ** h.bits - 1) / 2;
+  const centre = h.origin.map((o) => o + half * h.step);
+  self.postMessage({ token: job.token, header: { ...h, centre, extent: 2 * half * h.step } });
+  job.centre = centre;
+  relod(job.lod, job.token, job.first);
+}
+
+/** (Re)starts decoding at level of detail `lod` under `token`, from frame `first`. */
+function relod(lod, token, first = 0) {
+  if (!input || !input.header) {
+    Object.assign(job, { lod, token, first });
     return;
   }
-  job.next = (i + 1) % job.sent.length;
-  if (--job.left > 0) setTimeout(step, 0);
+  const n = input.header.frameCount;
+  const dec = new Decoder(input.bytes.subarray(0, input.filled), { header: input.header, units: input.units, lod });
+  job = { ...job, dec, lod, token, uvs: null, groups: new Map(), sent: new Uint8Array(n), left: n, next: Math.max(0, Math.min(first, n - 1)), wanted: undefined, timer: null, viewed: job.viewed ?? false };
+  wake();
+}
+
+/** Schedules the next decode step unless one is due or nothing can be decoded yet. */
+function wake() {
+  if (job && job.dec && job.timer === null && job.left > 0 && !input.failed) job.timer = setTimeout(step, 0);
+}
+
+/** Decodes and posts one frame that has arrived, then yields (so that a seek or bytes can come in) and goes on. */
+function step() {
+  job.timer = null;
+  const arrived = input.units.length, n = job.sent.length;
+  let i = job.wanted;
+  if (i !== undefined && job.sent[i]) i = job.wanted = undefined;
+  if (i === undefined || i >= arrived) {
+    i = undefined;
+    for (let k = 0, j = job.next; k < n; k++, j = (j + 1) % n) {
+      if (j < arrived && !job.sent[j]) { i = j; break; }
+    }
+    if (i === undefined) return; // waits for more bytes (receive wakes it)
+  }
+  if (i === job.wanted) job.wanted = undefined;
+  try {
+    if (!job.viewed) {
+      self.postMessage({ token: job.token, view: sequenceView(input.bytes.subarray(0, input.filled), input.header, input.units, job.centre) });
+      job.viewed = true;
+    }
+    post(i);
+  } catch (e) {
+    fail(e);
+    return;
+  }
+  job.next = (i + 1) % n;
+  if (--job.left > 0) wake();
   else self.postMessage({ token: job.token, done: true });
 }
 
@@ -69,6 +203,7 @@ function post(i) {
  * each group's are read that way once and kept (the last few groups). */
 function groupUvs(i) {
   if (job.dec.texturePayload(0) === null) return null; // untextured
+  job.uvs ??= frameUvs(job.dec); // made once frame 0 is in (it looks at frame 0's texture unit)
   let g = i;
   while (g > 0 && job.dec.texturePayload(g) === null) g--;
   if (!job.groups.has(g)) {
@@ -82,17 +217,18 @@ function groupUvs(i) {
 /**
  * What the default camera frames: {lo, hi} the box of the sequence around `centre`, and
  * `front`, the horizontal direction the surface faces. The box is the union of the intra
- * frames' base meshes (level of detail 0: cheap, and a predicted frame stays near its
+ * frames' base meshes (those that have arrived when the first frame is shown: all of them
+ * for bytes, or a download that was quicker than the first decode) (level of detail 0: cheap, and a predicted frame stays near its
  * group's intra frame); the front is the area-weighted mean normal of the first frame where
  * it clearly has one (an open surface, a relief), else +z (a closed surface, whose normals
  * cancel: the glTF convention's front).
  */
-function sequenceView(stream, infos, centre) {
-  const dec = new Decoder(stream, { lod: 0 });
+function sequenceView(stream, header, units, centre) {
+  const dec = new Decoder(stream, { header, units: units.slice(), lod: 0 });
   const lo = [Infinity, Infinity, Infinity], hi = [-Infinity, -Infinity, -Infinity];
   let front = null;
-  infos.forEach((info, i) => {
-    if (info.type !== 'I') return;
+  units.forEach((unit, i) => {
+    if (unit.type !== INTRA) return;
     const f = dec.decodeFrame(i);
     for (let j = 0; j < f.positions.length; j++) {
       const k = j % 3, x = f.positions[j] - centre[k];

@@ -32,12 +32,15 @@ const QP_MIN = -24, QP_MAX = 63;
 export class Decoder {
   /**
    * @param {Uint8Array} data the whole stream
-   * @param {{lod?: number}} [options]
+   * @param {{lod?: number, header?: object, units?: object[]}} [options] `header` and `units`
+   *   already read (`readHeader`, `readUnit`) skip reading them: a stream still arriving (the
+   *   player's worker) passes the units it has, appends to that array as more arrive, and may
+   *   replace `data` by a longer copy; frames decode once their units are there.
    */
   constructor(data, options = {}) {
     this.data = data;
-    this.header = readHeader(data);
-    this.units = readUnits(data, this.header);
+    this.header = options.header ?? readHeader(data);
+    this.units = options.units ?? readUnits(data, this.header);
     const s = this.header.schemes.length;
     const lod = options.lod ?? s;
     if (!Number.isInteger(lod) || lod < 0 || lod > s) throw new RangeError(`level of detail ${lod} out of range (the stream has ${s} subdivision iterations)`);

@@ -3,7 +3,9 @@
 //
 // Contract: `readHeader` and `readUnits` accept exactly the streams the Rust reader accepts
 // and fail with the same message at the same offset; every length and count is checked
-// against the bytes present before it is used.
+// against the bytes present before it is used. `readUnit(data, pos, frame)` reads and checks
+// one unit at `pos` ({type, offset, length, next}); the player's worker splits a stream that
+// is still arriving with it, unit by unit.
 
 import { crc32 } from './crc32.js';
 import { DecodeError } from '../error.js';
@@ -185,7 +187,7 @@ export function readUnits(data, header) {
   return units;
 }
 
-function readUnit(data, pos, frame) {
+export function readUnit(data, pos, frame) {
   const r = new Reader(data, pos, data.length, frame);
   const type = r.u8('unit type');
   const { offset, bytes } = r.block('unit payload');
