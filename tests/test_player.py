@@ -24,7 +24,7 @@ from dynmesh import api
 from dynmesh.player import make_server, web_root
 from dynmesh.conformance import _textured
 from dynmesh.mesh import Mesh
-from dynmesh.synth import synth_sequence
+from dynmesh.synth import polygonize, synth_sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 CHECK = ROOT / "web" / "test" / "helpers" / "browser-check.js"
@@ -304,10 +304,52 @@ def test_the_default_camera_frames_the_whole_sequence_from_its_front(tmp_path, s
     slack = 0.02 * np.ptp(used[0][:, 1])
     assert np.all(lo - slack <= used[0].min(axis=0)) and np.all(used[0].max(axis=0) <= hi + slack)
     assert hi[1] - lo[1] >= 0.9 * max(np.ptp(p[:, 1]) for p in used)
-    # The camera looks from the side the surface faces: +z (glTF's front) for a closed surface.
+    # The camera looks from the side the surface faces: +z (glTF's front) for a closed surface
+    # that is no standing figure (the blobs' round bottoms have no feet).
     direction = (np.sin(camera["yaw"]), np.cos(camera["yaw"]))
     expected = (-1.0, 0.0) if shape is facing_minus_x else (0.0, 1.0)
     assert np.dot(direction, expected) > 0.95, camera["yaw"]
+
+
+def standing_figure(toes: float, turn: float = 0.0, resolution: int = 64) -> Mesh:
+    """A closed figure standing on y = -0.9 (legs, hips wider than deep, a body, a head) whose
+    feet point to z = ``toes`` (-1 or 1), toes 0.2 ahead of the legs and heels 0.06 behind;
+    then turned by ``turn`` radians about y (z toward x)."""
+    axis = np.linspace(-1, 1, resolution)
+    x, y, z = np.meshgrid(axis, axis, axis, indexing="ij")
+
+    def capsule(a, b, r):
+        a, b = np.array(a, float), np.array(b, float)
+        t = np.clip(((x - a[0]) * (b - a)[0] + (y - a[1]) * (b - a)[1] + (z - a[2]) * (b - a)[2]) / ((b - a) @ (b - a)), 0, 1)
+        return np.sqrt((x - a[0] - t * (b - a)[0]) ** 2 + (y - a[1] - t * (b - a)[1]) ** 2 + (z - a[2] - t * (b - a)[2]) ** 2) - r
+
+    def box(c, half):
+        q = np.stack([np.abs(v - cv) - hv for v, cv, hv in zip((x, y, z), c, half)])
+        return np.linalg.norm(np.maximum(q, 0), axis=0) + np.minimum(q.max(axis=0), 0)
+
+    parts = [capsule((-0.25, 0.1, 0), (0.25, 0.1, 0), 0.12), capsule((0, 0.1, 0), (0, 0.5, 0), 0.15), box((0, 0.75, 0), (0.1, 0.12, 0.1))]
+    for side in (-1, 1):
+        parts += [capsule((0.12 * side, -0.8, 0), (0.12 * side, 0.1, 0), 0.06), box((0.12 * side, -0.86, 0.07 * toes), (0.06, 0.04, 0.13))]
+    m = polygonize(-np.min(parts, axis=0), axis, iso=0.0)
+    c, s = np.cos(turn), np.sin(turn)
+    return Mesh(m.positions @ np.array([[c, 0, -s], [0, 1, 0], [s, 0, c]]), m.faces)  # (x, z) -> (c x + s z, c z - s x)
+
+
+@pytest.mark.parametrize("toes, turn", [(-1, 0.0), (1, 0.0), (-1, 0.7)], ids=["toes -z", "toes +z", "toes -z turned"])
+def test_the_default_camera_looks_at_a_standing_figure_from_the_way_its_feet_point(tmp_path, toes, turn):
+    # A closed surface's normals cancel; a standing person's feet tell the front (worker.js,
+    # standingFront): the toes reach further ahead of the legs than the heels behind.
+    needs_browser()
+    figure = standing_figure(toes, turn)
+    p = figure.positions[figure.faces]
+    assert np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]).sum(axis=0)) < 1e-6 * len(p)  # closed
+    stream = tmp_path / "figure.dmsh"
+    stream.write_bytes(api.encode([figure, figure], qp=30))
+    with serving(play_server(stream)) as url:
+        camera = probe(url, CAMERA, tmp_path)
+    direction = (np.sin(camera["yaw"]), np.cos(camera["yaw"]))  # (x, z) of the camera's side
+    expected = (np.sin(turn) * toes, np.cos(turn) * toes)  # (0, toes) turned with the figure
+    assert np.dot(direction, expected) > 0.98, (camera["yaw"], camera["view"]["front"])
 
 
 EMBED = """<!doctype html>

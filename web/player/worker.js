@@ -216,12 +216,14 @@ function groupUvs(i) {
 
 /**
  * What the default camera frames: {lo, hi} the box of the sequence around `centre`, and
- * `front`, the horizontal direction the surface faces. The box is the union of the intra
- * frames' base meshes (those that have arrived when the first frame is shown: all of them
- * for bytes, or a download that was quicker than the first decode) (level of detail 0: cheap, and a predicted frame stays near its
- * group's intra frame); the front is the area-weighted mean normal of the first frame where
- * it clearly has one (an open surface, a relief), else +z (a closed surface, whose normals
- * cancel: the glTF convention's front).
+ * `front`, the horizontal unit direction the camera looks from (y is up). The box is the
+ * union of the intra frames' base meshes (those that have arrived when the first frame is
+ * shown: all of them for bytes, or a download that was quicker than the first decode) (level
+ * of detail 0: cheap, and a predicted frame stays near its group's intra frame). The front is
+ * that of the first of those frames that tells one: the area-weighted mean normal where it
+ * clearly has one (an open surface, a relief); for a closed surface, whose normals cancel (every
+ * capture of a person), the way a standing figure faces, told by its feet (`standingFront`);
+ * else +z (the glTF convention's front).
  */
 function sequenceView(stream, header, units, centre) {
   const dec = new Decoder(stream, { header, units: units.slice(), lod: 0 });
@@ -235,7 +237,7 @@ function sequenceView(stream, header, units, centre) {
       if (x < lo[k]) lo[k] = x;
       if (x > hi[k]) hi[k] = x;
     }
-    front ??= facing(f);
+    front ??= facing(f) ?? standingFront(f);
   });
   return { lo, hi, front: front ?? [0, 0, 1] };
 }
@@ -253,6 +255,71 @@ function facing({ positions: p, faces }) {
   }
   const l = Math.hypot(sx, sz);
   return l > 0.2 * area ? [sx / l, 0, sz / l] : null;
+}
+
+/** Heights as fractions of the figure's (y extent): the sole slice (the lowest faces: whole
+ * feet, toes to heels), the ankle slice above it (the lower legs only), the hip slice; the grid
+ * cell of the footprint. The feet tell a front when they point at least STEP of the height
+ * away from the legs, with at least ON_FEET ankle area over the footprint per sole area (a foot
+ * has its leg on it; a round bottom, whose next slice is wider, has none); the hips give it
+ * its axis when they are at least WIDE times as wide as deep (in variance) and it is within
+ * 60 degrees of the feet's way. */
+const SOLE = 0.03, ANKLE = [0.05, 0.1], HIPS = [0.4, 0.55], CELL = 0.02, STEP = 0.01, ON_FEET = 0.1, WIDE = 1.5;
+
+/**
+ * The horizontal unit direction a standing figure faces, or null when the frame does not
+ * show one clearly. Feet point forward: their soles reach further to the front of the legs
+ * above them (toes) than to the back (heels). So the area-weighted centre of the lowest faces
+ * (the SOLE slice) minus that of the faces of the ANKLE slice that stand on the footprint (over
+ * a grid cell, CELL of the height, that holds a sole face; a lifted foot's leg is thus left
+ * out, with its foot) is the way the feet point. On people captures it is 3 to 5 % of the
+ * height, but off the body's front by up to 45 degrees (feet turned out, a stance); the front
+ * is then the body's depth axis, the minor horizontal axis of the HIPS slice (hips are wider
+ * than deep, and hanging arms are beside them), on the feet's side.
+ */
+function standingFront({ positions: p, faces }) {
+  let bottom = Infinity, top = -Infinity;
+  for (let j = 1; j < p.length; j += 3) { bottom = Math.min(bottom, p[j]); top = Math.max(top, p[j]); }
+  const h = top - bottom;
+  if (!(h > 0)) return null;
+  const cell = CELL * h, key = (x, z) => `${Math.floor(x / cell)},${Math.floor(z / cell)}`;
+  const sole = [0, 0, 0], ankle = [0, 0, 0], footprint = new Set(), legs = [];
+  const hips = [0, 0, 0, 0, 0, 0]; // area, and its moments x, z, xx, xz, zz
+  for (let t = 0; t < faces.length; t += 3) {
+    const a = 3 * faces[t], b = 3 * faces[t + 1], c = 3 * faces[t + 2];
+    const y = ((p[a + 1] + p[b + 1] + p[c + 1]) / 3 - bottom) / h;
+    const low = y < SOLE, leg = y >= ANKLE[0] && y < ANKLE[1], hip = y >= HIPS[0] && y < HIPS[1];
+    if (!low && !leg && !hip) continue;
+    const ux = p[b] - p[a], uy = p[b + 1] - p[a + 1], uz = p[b + 2] - p[a + 2];
+    const vx = p[c] - p[a], vy = p[c + 1] - p[a + 1], vz = p[c + 2] - p[a + 2];
+    const w = Math.hypot(uy * vz - uz * vy, uz * vx - ux * vz, ux * vy - uy * vx);
+    const x = (p[a] + p[b] + p[c]) / 3, z = (p[a + 2] + p[b + 2] + p[c + 2]) / 3;
+    if (low) {
+      sole[0] += w * x; sole[1] += w * z; sole[2] += w;
+      footprint.add(key(x, z));
+    } else if (leg) legs.push(x, z, w);
+    else [w, w * x, w * z, w * x * x, w * x * z, w * z * z].forEach((m, k) => { hips[k] += m; });
+  }
+  for (let k = 0; k < legs.length; k += 3) {
+    if (!footprint.has(key(legs[k], legs[k + 1]))) continue;
+    ankle[0] += legs[k + 2] * legs[k]; ankle[1] += legs[k + 2] * legs[k + 1]; ankle[2] += legs[k + 2];
+  }
+  if (!(sole[2] > 0) || !(ankle[2] >= ON_FEET * sole[2])) return null;
+  let dx = sole[0] / sole[2] - ankle[0] / ankle[2], dz = sole[1] / sole[2] - ankle[1] / ankle[2];
+  const l = Math.hypot(dx, dz);
+  if (!(l >= STEP * h)) return null;
+  dx /= l; dz /= l;
+  if (hips[0] > 0) {
+    const [w, mx, mz] = hips, x = mx / w, z = mz / w;
+    const sxx = hips[3] / w - x * x, sxz = hips[4] / w - x * z, szz = hips[5] / w - z * z;
+    const mean = (sxx + szz) / 2, r = Math.hypot((sxx - szz) / 2, sxz);
+    const wide = 0.5 * Math.atan2(2 * sxz, sxx - szz); // the major axis's angle from x toward z
+    let ax = -Math.sin(wide), az = Math.cos(wide); // the minor axis
+    const along = ax * dx + az * dz;
+    if (along < 0) { ax = -ax; az = -az; }
+    if (mean + r >= WIDE * (mean - r) && Math.abs(along) >= 0.5) return [ax, 0, az];
+  }
+  return [dx, 0, dz];
 }
 
 /** Float32 positions around `centre`, unit vertex normals and the faces of a decoded frame. */
