@@ -11,7 +11,7 @@ seconds=${FUZZ_SECONDS:-10}
 work=${FUZZ_WORK:-$(mktemp -d -t dynmesh-fuzz-XXXXXX)}
 command -v cargo-fuzz >/dev/null || cargo install --quiet --locked cargo-fuzz
 python -c "import atheris" 2>/dev/null || pip install --quiet atheris
-cargo run --quiet --release -p dynmesh --example fuzz_seeds -- "$work/rust"
+cargo run --quiet --release -p dynmesh --features fuzzing --example fuzz_seeds -- "$work/rust"
 (cd fuzz && cargo +nightly fuzz build -O --sanitizer none)
 for target in stream base motion refresh uv coef; do
     echo "fuzz smoke: $target (${seconds} s)"

@@ -1,6 +1,6 @@
 //! Writes the seed inputs of the fuzz targets (`dynmesh::fuzzing::seeds`) into
 //! `DIR/<target>/seed_N`, the corpus layout cargo fuzz reads:
-//! `cargo run --release -p dynmesh --example fuzz_seeds -- fuzz/corpus`.
+//! `cargo run --release -p dynmesh --features fuzzing --example fuzz_seeds -- fuzz/corpus`.
 
 fn main() -> std::io::Result<()> {
     let dir = std::path::PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "fuzz/corpus".into()));

@@ -1,5 +1,7 @@
 //! Entry points for the fuzz targets in `fuzz/` (cargo fuzz), kept in the library so that
-//! they build on stable and a unit test runs each of them on its seed inputs.
+//! they build on stable and a unit test runs each of them on its seed inputs. Behind the
+//! `fuzzing` feature (which `fuzz/Cargo.toml` turns on) and built for the crate's own tests,
+//! so the library others link leaves them out.
 //!
 //! Each function takes arbitrary bytes, feeds them to one decoder and checks what the
 //! decoder promises: it returns an error or a well-formed result within its bounds, and

@@ -8,7 +8,8 @@
 //! coder and container); [`texture`] codes the atlas and resamples the texture. The
 //! [`decoder`] runs the inverse path; [`model`] is the reconstruction both sides share, so
 //! the [`encoder`]'s reconstruction and the decoder's output agree bit for bit. [`eval`] (feature `eval`) measures
-//! D1/D2 PSNR as the MPEG common test conditions do and renders snapshots.
+//! D1/D2 PSNR as the MPEG common test conditions do and renders snapshots. `fuzzing` (feature
+//! `fuzzing`, which the fuzz crate turns on) holds the fuzz targets' entry points.
 
 pub mod error;
 pub mod geom;
@@ -22,6 +23,7 @@ pub mod encoder;
 pub mod decoder;
 #[cfg(feature = "eval")]
 pub mod eval;
+#[cfg(any(test, feature = "fuzzing"))]
 pub mod fuzzing;
 #[cfg(test)]
 mod shared_data;
