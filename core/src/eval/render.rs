@@ -590,36 +590,4 @@ mod tests {
         let holes = inside.filter(|&(x, y)| at(&image, x, y) == [255; 3]).count();
         assert_eq!(holes, 0);
     }
-
-    /// Timing on a mesh of about a million faces; run with
-    /// `cargo test --release -p dynmesh render::tests::million_faces -- --ignored --nocapture`.
-    /// Prints CPU time too, since wall time on a shared machine depends on its load.
-    #[test]
-    #[ignore]
-    fn million_faces_at_1024() {
-        let m = wavy_sheet(708);
-        let t = checker(2048);
-        let view = View { azimuth_deg: 30.0, elevation_deg: 20.0 };
-        let _ = render(&m, Some(&t), 1024, 1024, view);
-        let runs = 5;
-        let (start, cpu) = (std::time::Instant::now(), cpu_seconds());
-        for _ in 0..runs {
-            std::hint::black_box(render(&m, Some(&t), 1024, 1024, view));
-        }
-        let wall = start.elapsed() / runs;
-        let cpu = cpu.zip(cpu_seconds()).map(|(a, b)| (b - a) / runs as f64);
-        println!(
-            "{} faces at 1024x1024: {wall:?} wall per frame, CPU {cpu:?} s per frame ({} threads)",
-            m.mesh.faces.len(),
-            rayon::current_num_threads()
-        );
-    }
-
-    /// User + system CPU seconds of this process so far (Linux only; 10 ms resolution).
-    fn cpu_seconds() -> Option<f64> {
-        let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
-        let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
-        let ticks = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
-        Some(ticks / 100.0)
-    }
 }

@@ -446,7 +446,7 @@ fn ring_smoothed(rings: &Adjacency, s: &[f64], weight: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geom::testmesh::{grid, icosphere, midpoint, timed, uv_sphere, Rng, Soup};
+    use crate::geom::testmesh::{grid, icosphere, midpoint, Rng, Soup};
     use crate::geom::mesh::norm;
 
     fn moved(pos: &[[f64; 3]], d: &[[f64; 3]]) -> Vec<[f64; 3]> {
@@ -686,65 +686,5 @@ mod tests {
         let flat = Bvh::new(&pos, &[[0, 0, 1]]);
         let d = fit_displacements(&pos, &[[0, 0, 1], [0, 1, 9]], &frames, &flat, true);
         assert!(d.iter().flatten().all(|c| c.is_finite()));
-    }
-
-    /// Sub vertices ending up on a smooth sphere of radius 500 (quality figures for the
-    /// report): `cargo test --release --lib sphere_fit_accuracy -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn sphere_fit_accuracy() {
-        let (sub, target) = sphere_case(500.0);
-        let frames = local_frames(&sub.0, &sub.1);
-        report("sphere r=500", &sub, &frames, &target);
-    }
-
-    fn report(name: &str, (pos, faces): &Soup, frames: &[Frame], target: &Bvh) {
-        let p = FitParams::default();
-        let miss: Vec<bool> = (pos.iter().zip(frames))
-            .map(|(&v, f)| first_fit(v, f[0], target, &p).hit().is_none())
-            .collect();
-        let (d, wall, cpu) = timed(|| fit_displacements(pos, faces, frames, target, true));
-        let out = moved(pos, &d);
-        println!("{name}: {} vertices vs {} tris", pos.len(), target.len());
-        println!("  fit {:.1} ms wall, {:.1} ms cpu", wall * 1e3, cpu * 1e3);
-        let errors = |pts: &[[f64; 3]], which: Option<bool>| {
-            let pick = pts.iter().zip(&miss).filter(|(_, &m)| which.map_or(true, |w| w == m));
-            surface_error(&pick.map(|(p, _)| *p).collect::<Vec<_>>(), target)
-        };
-        let n_miss = miss.iter().filter(|&&m| m).count();
-        let groups =
-            [(None, "all"), (Some(false), "trusted crossing"), (Some(true), "no trusted crossing")];
-        for (which, label) in groups.into_iter().filter(|g| n_miss > 0 || g.0.is_none()) {
-            let ((bmax, bmean), (amax, amean)) = (errors(pos, which), errors(&out, which));
-            let count = miss.iter().filter(|&&m| which.map_or(true, |w| w == m)).count();
-            println!(
-                "  {label} ({count}): distance to target before max {bmax:.3} mean {bmean:.3}, \
-                 after max {amax:.2e} mean {amean:.2e}"
-            );
-        }
-    }
-
-    /// The codec's sizes: a 40k-triangle bumpy target, a 5k-triangle base on it subdivided
-    /// three times (164k vertices). `cargo test --release --lib timing_fit -- --ignored
-    /// --nocapture`.
-    #[test]
-    #[ignore]
-    fn timing_fit_160k() {
-        let r = |th: f64, ph: f64| {
-            let ripple = 4.0 * (17.0 * th).cos() * (13.0 * ph).sin();
-            500.0 + 25.0 * (4.0 * th).sin() * (6.0 * ph).cos() + ripple
-        };
-        let (tp, tf) = uv_sphere(101, 200, r);
-        let (target, wall, cpu) = timed(|| Bvh::new(&tp, &tf));
-        println!("bvh build {} tris: {:.2} ms wall, {:.2} ms cpu", tf.len(), wall * 1e3, cpu * 1e3);
-        let (mut base, base_faces) = icosphere(4, 1.0);
-        for v in base.iter_mut() {
-            *v = scale(*v, r(v[2].clamp(-1.0, 1.0).acos(), v[1].atan2(v[0])));
-        }
-        let sub = midpoint(&(base, base_faces), 3);
-        let (frames, wall, cpu) = timed(|| local_frames(&sub.0, &sub.1));
-        let ms = (wall * 1e3, cpu * 1e3);
-        println!("frames {} vertices: {:.1} ms wall, {:.1} ms cpu", sub.0.len(), ms.0, ms.1);
-        report("bumpy sphere", &sub, &frames, &target);
     }
 }

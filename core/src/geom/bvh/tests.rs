@@ -1,6 +1,5 @@
-use crate::geom::testmesh::{grid, timed, uv_sphere, Rng, Soup};
+use crate::geom::testmesh::{grid, uv_sphere, Rng, Soup};
 use super::*;
-use crate::geom::mesh::normalize;
 
 #[test]
 fn a_parallel_build_lays_the_tree_out_as_a_sequential_one() {
@@ -167,27 +166,4 @@ fn degenerate_and_empty_meshes_do_not_panic() {
     assert!(empty.is_empty());
     assert!(empty.closest_point([0.0; 3]).is_none());
     assert!(empty.intersect_line([0.0; 3], [1.0, 0.0, 0.0], 1.0).is_none());
-}
-
-/// Build and query timing on 40k triangles: `cargo test --release --lib timing_40k --
-/// --ignored --nocapture`. Queries lie up to 20 units off the surface, more than a fit sees.
-#[test]
-#[ignore]
-fn timing_40k() {
-    let r = |th: f64, ph: f64| 500.0 + 20.0 * (4.0 * th).sin() * (6.0 * ph).cos();
-    let (pos, faces) = uv_sphere(101, 200, r);
-    let (_, wall, cpu) = timed(|| (0..10).map(|_| Bvh::new(&pos, &faces).len()).sum::<usize>());
-    println!("{} tris: build {:.2} ms wall, {:.2} ms cpu", faces.len(), wall * 1e2, cpu * 1e2);
-    let bvh = Bvh::new(&pos, &faces);
-    let mut rng = Rng(3);
-    let qs: Vec<[f64; 3]> = (0..160_000)
-        .map(|_| scale(normalize(rng.point(-1.0, 1.0)), rng.range(480.0, 520.0)))
-        .collect();
-    let closest = || qs.par_iter().map(|&q| bvh.closest_point(q).unwrap().dist2).sum::<f64>();
-    let (_, wall, cpu) = timed(closest);
-    println!("160k closest: {:.1} ms wall, {:.1} ms cpu", wall * 1e3, cpu * 1e3);
-    let line = |&q: &[f64; 3]| bvh.intersect_line(q, normalize(q), 30.0).is_some();
-    let (h, wall, cpu) = timed(|| qs.par_iter().filter(|q| line(q)).count());
-    let ms = (wall * 1e3, cpu * 1e3);
-    println!("160k lines |t| <= 30: {:.1} ms wall, {:.1} ms cpu, {h} hits", ms.0, ms.1);
 }
