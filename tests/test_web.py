@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from conftest import SHARED_DATA
-from dynmesh import api
+from dynmesh import _core, api
 from dynmesh.conformance import frame_hash, uv_hash
 from dynmesh.io import read_mesh, resolve_sequence
 
@@ -115,6 +115,30 @@ def test_damaged_streams_give_the_same_errors_in_both_decoders(tmp_path):
         assert (j.get("error"), j["hashes"]) == (r.get("error"), r["hashes"]), path.name
         errors += "error" in r
     assert errors > len(cases) // 2  # most damage is caught, and caught the same way
+
+
+def test_texture_unit_payloads_read_alike_in_both_readers():
+    # The core's reader (stream/texture_payload.rs) and web/src/texture/unit.js, on a payload
+    # and on every way of damaging it: the same fields, or the same error.
+    good = _core.pack_texture_payload(1, 1024, 512, 12, 3, b"atlas", b"video!")
+    def with_byte(i, v):
+        return good[:i] + bytes([v]) + good[i + 1:]
+    cases = [good, good[:10], with_byte(0, 2), with_byte(1, 2), with_byte(2, 1), with_byte(5, 0x41), with_byte(6, 0),
+             with_byte(6, 17), good[:7] + bytes(4) + good[11:], good[:13], good[:17], good[:-1], good + b"\0",
+             with_byte(11, 0xFF)]
+    script = (f"import {{ readTextureUnit }} from {json.dumps((WEB / 'src' / 'texture' / 'unit.js').as_uri())};"
+              "for (const hex of JSON.parse(process.argv[1])) { try { const u = readTextureUnit(Buffer.from(hex, 'hex'));"
+              " console.log(JSON.stringify([u.codec, u.width, u.height, u.uvBits, u.frames, Buffer.from(u.atlas).toString('hex'),"
+              " Buffer.from(u.video).toString('hex')])); } catch (e) { console.log(JSON.stringify(e.message)); } }")
+    out = subprocess.run([NODE, "--input-type=module", "-e", script, json.dumps([c.hex() for c in cases])],
+                         capture_output=True, text=True, timeout=60, check=True)
+    for case, line in zip(cases, out.stdout.splitlines(), strict=True):
+        try:
+            codec, w, h, bits, frames, atlas, video = _core.read_texture_payload(case)
+            want = [_core.TEXTURE_CODECS[codec], w, h, bits, frames, atlas.hex(), video.hex()]
+        except ValueError as e:
+            want = str(e)
+        assert json.loads(line) == want, case.hex()
 
 
 # Two here (the Node tests, web/test/shared.test.js, take four others): constant face count

@@ -22,6 +22,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use dynmesh::stream::bitstream::{FrameType, SequenceHeader};
+use dynmesh::stream::texture_payload::{TexturePayload, TEXTURE_CODECS};
 use dynmesh::decoder;
 use dynmesh::encoder::{FrameStats, SequenceEncoder, TextureCost};
 use dynmesh::error::DecodeError as CoreDecodeError;
@@ -279,6 +280,25 @@ fn texture_unit<'py>(py: Python<'py>, payload: &[u8]) -> Bound<'py, PyBytes> {
     PyBytes::new(py, &dynmesh::stream::bitstream::write_texture_unit(payload))
 }
 
+/// The texture unit payload of a group (`stream::texture_payload`): codec index, atlas
+/// width and height, UV bits, frame count, coded atlas, video.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn pack_texture_payload<'py>(py: Python<'py>, codec: u8, width: u16, height: u16, uv_bits: u8, frames: u32, atlas: &[u8], video: &[u8]) -> Bound<'py, PyBytes> {
+    let p = TexturePayload { codec, width, height, uv_bits, frames, atlas: atlas.to_vec(), video: video.to_vec() };
+    PyBytes::new(py, &p.to_bytes())
+}
+
+type TextureFields<'py> = (u8, u16, u16, u8, u32, Bound<'py, PyBytes>, Bound<'py, PyBytes>);
+
+/// The fields of a texture unit payload, as `pack_texture_payload` takes them; ValueError
+/// naming what is wrong when it is damaged.
+#[pyfunction]
+fn read_texture_payload<'py>(py: Python<'py>, data: &[u8]) -> PyResult<TextureFields<'py>> {
+    let p = TexturePayload::read(data).map_err(|e| PyValueError::new_err(e.0))?;
+    Ok((p.codec, p.width, p.height, p.uv_bits, p.frames, PyBytes::new(py, &p.atlas), PyBytes::new(py, &p.video)))
+}
+
 /// D1/D2 distortion between a reference and a decoded mesh, sampled on the grid over
 /// the box `[box_min, box_max]`. Returns (d1_mse, d2_mse, d1_psnr, d2_psnr).
 #[pyfunction]
@@ -352,6 +372,9 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Decoder>()?;
     m.add_function(wrap_pyfunction!(mesh_distortion, m)?)?;
     m.add_function(wrap_pyfunction!(texture_unit, m)?)?;
+    m.add_function(wrap_pyfunction!(pack_texture_payload, m)?)?;
+    m.add_function(wrap_pyfunction!(read_texture_payload, m)?)?;
+    m.add("TEXTURE_CODECS", TEXTURE_CODECS.to_vec())?;
     colour::register(m)?;
     uv::register(m)?;
     transfer::register(m)?;

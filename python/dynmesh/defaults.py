@@ -58,8 +58,9 @@ MAX_REFERENCES: int = _core.MAX_REFERENCES
 #: 12-25 % fewer bytes than libx265 ultrafast (``texture/video.py``).
 TEXTURE: dict = {"texture_size": None, "texture_qp": None, "texture_codec": "av1"}
 
-#: Texture video codec names as the stream signals them (the index is the code).
-TEXTURE_CODECS = ("hevc", "av1")
+#: Texture video codec names as the stream signals them (the index is the code), as the
+#: core's texture unit syntax lists them.
+TEXTURE_CODECS: tuple[str, ...] = tuple(_core.TEXTURE_CODECS)
 
 
 #: ``texture_qp_for``: texture QP = slope x geometry QP + offset. Of the mappings with slopes

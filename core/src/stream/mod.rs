@@ -1,9 +1,11 @@
 //! Bytes: the binary range coder with adaptive models that every coder runs over ([`ec`],
 //! whose `Side` drives encoding and decoding through one function), the container of
-//! sequence header and CRC-checked frame units ([`bitstream`]), and the recovery of the frame
-//! units that survive in a damaged stream ([`resync`]).
+//! sequence header and CRC-checked frame units ([`bitstream`]), the fields inside a frame unit
+//! ([`payload`]) and a texture unit ([`texture_payload`]), and the recovery of the frame units
+//! that survive in a damaged stream ([`resync`]).
 
 pub mod ec;
 pub mod bitstream;
 pub mod payload;
+pub mod texture_payload;
 pub mod resync;

@@ -6,16 +6,14 @@ group has that base mesh's connectivity (predicted frames move it), so all of th
 the atlas, subdivided with the mesh (``_core.subdivide_uv``). Each frame's input texture is
 transferred onto the reconstructed mesh in that atlas (``_core.transfer_texture``, padded),
 and the group's images become one video (``video``). The stream carries all of it in one
-texture unit after the group's intra frame (``docs/bitstream.md``, texture unit):
-
-    u8 version (1), u8 codec (index in ``video.CODECS``), u16 width, u16 height,
-    u8 uv_bits, u32 frames in the group, u32 + bytes coded atlas, u32 + bytes video
+texture unit after the group's intra frame, whose fields the core writes and reads
+(``_core.pack_texture_payload``, ``_core.read_texture_payload``; ``docs/bitstream.md``,
+texture unit payload).
 """
 
 from __future__ import annotations
 
 import bisect
-import struct
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,10 +25,6 @@ from . import atlas, video
 
 #: Defaults of the texture options (``encode_frames`` takes them beside the geometry ones).
 TEXTURE_DEFAULTS: dict = TEXTURE
-
-_FIXED = struct.Struct("<BBHHBI")
-_VERSION = 1
-
 
 @dataclass
 class GroupHeader:
@@ -45,35 +39,14 @@ class GroupHeader:
 
 def pack_group(g: GroupHeader) -> bytes:
     """The texture unit payload of a group."""
-    fixed = _FIXED.pack(_VERSION, video.CODECS.index(g.codec), g.width, g.height, g.uv_bits, g.frames)
-    return b"".join([fixed, struct.pack("<I", len(g.atlas)), g.atlas, struct.pack("<I", len(g.video)), g.video])
+    return _core.pack_texture_payload(video.CODECS.index(g.codec), g.width, g.height, g.uv_bits, g.frames,
+                                      g.atlas, g.video)
 
 
 def unpack_group(data: bytes) -> GroupHeader:
     """Parses a texture unit payload; raises ValueError naming what is wrong."""
-    if len(data) < _FIXED.size:
-        raise ValueError("texture unit is truncated")
-    version, codec, width, height, uv_bits, frames = _FIXED.unpack_from(data)
-    if version != _VERSION:
-        raise ValueError(f"texture unit version {version} is not supported")
-    if codec >= len(video.CODECS):
-        raise ValueError(f"unknown texture codec {codec}")
-    if not (16 <= width <= 16384 and 16 <= height <= 16384 and width % 2 == 0 and height % 2 == 0):
-        raise ValueError(f"texture size {width} x {height} is out of range")
-    if not 1 <= uv_bits <= 16 or frames == 0:
-        raise ValueError("texture unit has invalid UV bits or frame count")
-    blocks, pos = [], _FIXED.size
-    for what in ("atlas", "video"):
-        if pos + 4 > len(data):
-            raise ValueError(f"texture unit is truncated before its {what}")
-        (n,) = struct.unpack_from("<I", data, pos)
-        if pos + 4 + n > len(data):
-            raise ValueError(f"texture unit's {what} is truncated")
-        blocks.append(bytes(data[pos + 4 : pos + 4 + n]))
-        pos += 4 + n
-    if pos != len(data):
-        raise ValueError("unexpected bytes at the end of the texture unit")
-    return GroupHeader(video.CODECS[codec], width, height, uv_bits, frames, *blocks)
+    codec, width, height, uv_bits, frames, atlas_block, video_block = _core.read_texture_payload(data)
+    return GroupHeader(video.CODECS[codec], width, height, uv_bits, frames, atlas_block, video_block)
 
 
 def check_options(options: dict) -> dict:
