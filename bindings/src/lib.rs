@@ -1,4 +1,5 @@
-//! Python bindings: thin wrappers that move numpy arrays in and out of the core.
+//! Python bindings: numpy arrays in and out of the core, and the file work that would be slow
+//! in Python (OBJ and PLY text, PNG, decoding a stream to files).
 //!
 //! Every function releases the GIL while the core works, so Python threads can encode
 //! frames side by side.

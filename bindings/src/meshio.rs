@@ -4,7 +4,8 @@
 //! .mtl library and texture paths) and turns [`MeshFormatError`] `(message, line)` into
 //! `MeshError(path, message, line)`; this module does the per-line and per-value work.
 //!
-//! Hand-written rather than a crate, because the readers must keep what `io.py` pins:
+//! Hand-written rather than a crate, because the readers must keep what `python/dynmesh/io/meshio.py` and
+//! the tests pin:
 //! - OBJ: `tobj` keeps separate position and UV index lists (`single_index: false`) and
 //!   triangulates, but its `LoadError` is a fieldless enum: no line, no token, where our
 //!   errors name both. The reader here also keeps, as before: negative indices (relative
@@ -13,7 +14,7 @@
 //!   comment), `#` comments anywhere, extra vertex values (colours) ignored, and the
 //!   `mtllib`/`usemtl` arguments handed back for Python to resolve.
 //! - PLY: `ply-rs` builds a map per record by default; the reader here is small enough to
-//!   keep io.py's exact messages and their precedence: ASCII and binary little and big
+//!   keep the exact messages and their precedence: ASCII and binary little and big
 //!   endian, any scalar type, ragged list properties, extra elements, ASCII errors by
 //!   line, binary ones by record, truncation refused before allocating.
 //!

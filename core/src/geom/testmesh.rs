@@ -25,23 +25,6 @@ impl Rng {
 
 pub type Soup = (Vec<[f64; 3]>, Vec<[u32; 3]>);
 
-/// Runs `f`, returning its result, wall seconds and on-CPU seconds of the whole process
-/// (all threads, from /proc; 0 where unavailable): under a shared machine the CPU time
-/// says what the code costs when the wall time is inflated by other work.
-pub fn timed<T>(f: impl FnOnce() -> T) -> (T, f64, f64) {
-    let (c0, t0) = (cpu_ns(), std::time::Instant::now());
-    let r = f();
-    (r, t0.elapsed().as_secs_f64(), (cpu_ns().saturating_sub(c0)) as f64 * 1e-9)
-}
-
-fn cpu_ns() -> u64 {
-    let Ok(dir) = std::fs::read_dir("/proc/self/task") else { return 0 };
-    dir.flatten()
-        .filter_map(|e| std::fs::read_to_string(e.path().join("schedstat")).ok())
-        .filter_map(|s| s.split_whitespace().next()?.parse::<u64>().ok())
-        .sum()
-}
-
 /// Latitude-longitude sphere with pole fans, outward CCW: `2 * slices * (stacks - 1)`
 /// triangles; `radius(theta, phi)` shapes it.
 pub fn uv_sphere(stacks: u32, slices: u32, radius: impl Fn(f64, f64) -> f64) -> Soup {

@@ -767,34 +767,4 @@ mod tests {
             assert_eq!(transfer_texture(&far, &source, &tex, 40, 33), reference(&far, &source, &tex, 40, 33));
         }
     }
-
-    /// Transfer and padding at 2048² onto targets of about 400k and 1M faces (subdivided
-    /// spheres, their atlas filling most of the image) from a 40k-face source, on one thread and
-    /// on all: `cargo test --release -p dynmesh transfer::tests::timing_2048 -- --ignored
-    /// --nocapture`.
-    #[test]
-    #[ignore]
-    fn timing_2048() {
-        let tex = noise(2048, 2048, 4);
-        for base in [(40, 80), (63, 124)] {
-            let (target, source) = sphere_pair((101, 200), base, 3);
-            let (t, s) = (&target.mesh, &source.mesh);
-            println!("target {} faces, source {} faces / {} vertices", t.faces.len(), s.faces.len(), s.positions.len());
-            for threads in [1, rayon::current_num_threads()] {
-                let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
-                let (mut out, transfer) = pool.install(|| seconds(|| transfer_texture(&target, &source, &tex, 2048, 2048)));
-                let (_, padding) = pool.install(|| seconds(|| pad(&mut out.texture, &out.covered)));
-                let covered = out.covered.iter().filter(|&&c| c).count() as f64 / out.covered.len() as f64;
-                let share = covered * 100.0;
-                println!("  {threads} threads: transfer {transfer:.3} s ({share:.1}% covered), pad {padding:.3} s");
-            }
-        }
-    }
-
-    /// Wall seconds of `f`, and its result.
-    fn seconds<T>(f: impl FnOnce() -> T) -> (T, f64) {
-        let start = std::time::Instant::now();
-        let r = f();
-        (r, start.elapsed().as_secs_f64())
-    }
 }
