@@ -39,7 +39,7 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
-from . import api, texture
+from . import encoding, texture
 from .io import read_image, read_mesh
 from .io.meshio import _atomic_write
 from .mesh import Mesh
@@ -73,15 +73,15 @@ class _Unreachable(Exception):
     """A frame or texture file that this worker does not have."""
 
 
-def encode_group(job: GroupJob) -> api.EncodeResult | None:
+def encode_group(job: GroupJob) -> encoding.EncodeResult | None:
     """The group's piece of the stream (see the module documentation), or None when a frame
     or texture file it names is not there for this worker."""
     count, lo, hi = job.sequence
-    enc = api._encoder(count, lo, hi, job.options)
+    enc = encoding._encoder(count, lo, hi, job.options)
     enc.start_group(job.first)
-    tex = None if job.texture is None else api.texture_encoder(job.options, job.texture, job.keep)
+    tex = None if job.texture is None else encoding.texture_encoder(job.options, job.texture, job.keep)
     try:
-        return api.encode_units(enc, tex, _frames_here(job), job.first, count, job.keep, None)
+        return encoding.encode_units(enc, tex, _frames_here(job), job.first, count, job.keep, None)
     except _Unreachable:
         return None
 
@@ -179,7 +179,7 @@ def _share_cores(jobs: int) -> None:
 
 
 def encoded_groups(frames: Iterable, sequence: tuple, options: dict, texture_options: dict | None, keep: bool,
-                   jobs: int = 1, ray: str | None = None) -> Iterator[api.EncodeResult]:
+                   jobs: int = 1, ray: str | None = None) -> Iterator[encoding.EncodeResult]:
     """The groups' pieces of the stream in order (the header is not among them), encoded
     by ``jobs`` local processes or on the Ray cluster at ``ray``; ``frames`` (paths or
     Mesh objects) are taken from the iterable a group at a time, as the workers need them.
@@ -189,7 +189,7 @@ def encoded_groups(frames: Iterable, sequence: tuple, options: dict, texture_opt
     return _pieces(executor, _group_jobs(frames, sequence, options, texture_options, keep), 2 * workers)
 
 
-def _pieces(executor, groups: Iterator[GroupJob], window: int) -> Iterator[api.EncodeResult]:
+def _pieces(executor, groups: Iterator[GroupJob], window: int) -> Iterator[encoding.EncodeResult]:
     with executor:
         yield from _in_order(executor, groups, window)
 
@@ -208,12 +208,12 @@ def _group_jobs(frames: Iterable, sequence: tuple, options: dict, texture_option
         raise ValueError(f"more than the {count} frames announced")
 
 
-def _in_order(executor, groups: Iterator[GroupJob], window: int) -> Iterator[api.EncodeResult]:
+def _in_order(executor, groups: Iterator[GroupJob], window: int) -> Iterator[encoding.EncodeResult]:
     """Keeps up to ``window`` groups submitted and yields their pieces in stream order."""
     pending: collections.deque[tuple[GroupJob, Future]] = collections.deque()
     send_meshes = False
 
-    def finished(job: GroupJob, future: Future) -> api.EncodeResult:
+    def finished(job: GroupJob, future: Future) -> encoding.EncodeResult:
         nonlocal send_meshes
         # A dead process breaks every future of a local pool: name all the groups in flight.
         in_flight = "frames " + ", ".join(j.span() for j in [job, *(j for j, _ in pending)])
@@ -252,7 +252,7 @@ def result_of(future: Future, what: str):
         raise
 
 
-def stream_chunks(header: bytes, groups: Iterable[api.EncodeResult], result: api.EncodeResult,
+def stream_chunks(header: bytes, groups: Iterable[encoding.EncodeResult], result: encoding.EncodeResult,
                   on_frame: Callable[[int, dict], None] | None = None) -> Iterator[bytes]:
     """The stream: ``header``, then each group's piece as it comes. Each group's frame
     statistics, reconstructions and texture bytes are added to ``result`` on the way (not
@@ -270,19 +270,19 @@ def stream_chunks(header: bytes, groups: Iterable[api.EncodeResult], result: api
 
 def encode_to_file(path: str | os.PathLike, frames: Iterable, *, sequence: tuple, texture: bool, jobs: int = 1,
                    ray: str | None = None, on_frame: Callable[[int, dict], None] | None = None,
-                   **options) -> api.EncodeResult:
+                   **options) -> encoding.EncodeResult:
     """Encodes ``frames`` (mesh file paths, which the workers read, or Mesh objects) into
     the stream file ``path``, written as the groups come in order, under a temporary name
     renamed when the stream is complete. ``sequence`` is (frame count, box min, box max),
     ``texture`` True or False; the rest as ``api.encode_frames`` with ``jobs`` or ``ray``.
     Returns the frames' statistics (``data`` stays empty: the stream is in the file)."""
-    opts, texture_options = api._split_options(options)
-    textured = api._given_texture(texture)
-    header = api._encoder(*sequence, opts).header_bytes()
+    opts, texture_options = encoding._split_options(options)
+    textured = encoding._given_texture(texture)
+    header = encoding._encoder(*sequence, opts).header_bytes()
     if textured:
-        first, frames = api._peek(frames)
+        first, frames = encoding._peek(frames)
         texture_options = texture.resolve_options(texture_options, opts["qp"], first if isinstance(first, Mesh) else read_again(first))
     groups = encoded_groups(frames, sequence, opts, texture_options if textured else None, False, jobs, ray)
-    result = api.EncodeResult(b"", texture_options=texture_options if textured else None)
+    result = encoding.EncodeResult(b"", texture_options=texture_options if textured else None)
     _atomic_write(Path(path), stream_chunks(header, groups, result, on_frame))
     return result
