@@ -60,7 +60,7 @@ impl SequenceEncoder {
     /// The bytes of a candidate with what its texture will cost ([`TextureCost`]).
     fn frame_bytes(&self, c: &Chosen) -> usize {
         let previous = self.references.iter().find(|s| s.frame + 1 == self.frame);
-        let restarts = c.candidate.head.frame_type == FrameType::Intra || previous.is_none_or(|s| s.reference.state.faces != c.candidate.state.faces);
+        let restarts = c.candidate.head.frame_type == FrameType::Intra || !previous.is_some_and(|s| s.reference.state.faces == c.candidate.state.faces);
         c.candidate.payload.len() + self.texture_bytes(restarts)
     }
 

@@ -9,6 +9,7 @@
 //! `v = 1 - (y + 0.5) / height`.
 
 pub mod uv_corners;
+pub mod uv_state;
 pub mod uv_prediction;
 pub mod uvcoder;
 pub mod transfer;

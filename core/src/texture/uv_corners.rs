@@ -19,8 +19,7 @@
 use crate::error::Corrupt;
 use crate::stream::ec::Side;
 use crate::geom::mesh::{dot, edge_key, sub};
-use crate::texture::uvcoder::{Atlas, Models, Truth, BEND_COS};
-use crate::texture::uv_prediction::face_normal;
+use crate::texture::uv_state::{face_normal, squared_distance, Atlas, Models, Truth, BEND_COS};
 
 /// What a corner uses: a UV already coded (by coded index) or a new one.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -145,12 +144,6 @@ fn ranked_candidates(atlas: &Atlas, candidates: &[u32], references: &[u32]) -> V
         (!connected, distance.unwrap_or(0), std::cmp::Reverse(atlas.last_used[c as usize]))
     });
     ranked
-}
-
-pub(crate) fn squared_distance(a: [u32; 2], b: [u32; 2]) -> u64 {
-    let dx = a[0].abs_diff(b[0]) as u64;
-    let dy = a[1].abs_diff(b[1]) as u64;
-    dx * dx + dy * dy
 }
 
 /// Codes one corner's choice among `ranked` candidates, a new UV, or (escape) any of the

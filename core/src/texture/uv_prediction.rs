@@ -17,7 +17,7 @@
 use crate::error::Corrupt;
 use crate::stream::ec::{IntModel, Side};
 use crate::geom::mesh::{cross, dot, edge_key, sub};
-use crate::texture::uvcoder::{Atlas, Models};
+use crate::texture::uv_state::{face_normal, uv_cross, Atlas, Models};
 
 /// How a new UV was predicted; each kind has its own residual models.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -156,13 +156,6 @@ fn predict(atlas: &Atlas, face: &[u32; 3], ids: [u32; 3], known: &[Option<[u32; 
     })
 }
 
-/// Twice the signed area of the UV triangle (a, b, c): positive when counter-clockwise.
-pub(crate) fn uv_cross(a: [u32; 2], b: [u32; 2], c: [u32; 2]) -> i64 {
-    let d = |p: [u32; 2], q: [u32; 2]| [q[0] as i64 - p[0] as i64, q[1] as i64 - p[1] as i64];
-    let (u, v) = (d(a, b), d(a, c));
-    u[0] * v[1] - u[1] * v[0]
-}
-
 /// Corner `k` placed so that its UV triangle with the known UVs `ub`, `uc` of the next two
 /// corners has the shape of the 3D triangle (a parametrization that preserves angles
 /// locally does exactly that), on the left of `ub -> uc` if `left`. `None` for a
@@ -181,14 +174,6 @@ fn shape_prediction(positions: &[[f64; 3]], face: &[u32; 3], k: usize, ub: [u32;
     let eu = [uc[0] as f64 - ub[0] as f64, uc[1] as f64 - ub[1] as f64];
     let p = [ub[0] as f64 + t * eu[0] - h * eu[1], ub[1] as f64 + t * eu[1] + h * eu[0]];
     p.iter().all(|x| x.is_finite()).then(|| p.map(|x| x.round().clamp(-1e9, 1e9) as i64))
-}
-
-/// Unit normal of `face` (counter-clockwise corners), `None` if degenerate.
-pub(crate) fn face_normal(p: &[[f64; 3]], face: &[u32; 3]) -> Option<[f64; 3]> {
-    let [a, b, c] = face.map(|v| p[v as usize]);
-    let n = cross(sub(b, a), sub(c, a));
-    let len = dot(n, n).sqrt();
-    (len > 0.0 && len.is_finite()).then(|| n.map(|x| x / len))
 }
 
 /// The UV of position `pa`, given the UVs `ub`, `ux` of positions `pb`, `px`: `pa` is

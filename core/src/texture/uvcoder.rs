@@ -15,10 +15,11 @@
 //! the caller's mesh, whatever the data, and allocates nothing the faces cannot reference.
 
 use crate::error::Corrupt;
-use crate::stream::ec::{BitModel, DecSide, Decoder, EncSide, Encoder, IntModel, Side};
+use crate::stream::ec::{DecSide, Decoder, EncSide, Encoder, Side};
 use crate::geom::mesh::{dot, edge_key, sub, EdgeMap};
-use crate::texture::uv_corners::{decide_corners, squared_distance};
-use crate::texture::uv_prediction::{code_new_uvs, uv_cross};
+use crate::texture::uv_corners::decide_corners;
+use crate::texture::uv_prediction::code_new_uvs;
+use crate::texture::uv_state::{squared_distance, uv_cross, Atlas, Models, Truth};
 
 /// An atlas: per face, the UV indices of its corners; and the UVs.
 pub type UvAtlas = (Vec<[u32; 3]>, Vec<[u32; 2]>);
@@ -28,9 +29,6 @@ pub const MAX_UV_BITS: u32 = 16;
 /// UVs kept as candidates per position vertex: bounds the ranking work a hostile mesh can
 /// cause. Further UVs at the vertex are still reachable through the explicit escape.
 const MAX_CANDIDATES: usize = 32;
-/// Cosine of the angle between face normals beyond which an edge counts as a crease.
-pub(crate) const BEND_COS: f64 = 0.9;
-
 /// Codes the atlas of the mesh `faces`: corner `k` of face `f` uses `uv[uv_faces[f][k]]`,
 /// a UV quantized to `bits` bits per axis. UVs no corner uses are not coded. Decode with
 /// [`decode_uv`].
@@ -118,76 +116,6 @@ pub fn canonical_uv(uv_faces: &[[u32; 3]], uv: &[[u32; 2]]) -> UvAtlas {
         })
         .collect();
     (out_faces, out_uv)
-}
-
-/// Adaptive contexts, shared by encoder and decoder so that both adapt identically.
-pub(crate) struct Models {
-    /// "The first-ranked candidate", by [`CornerContext`].
-    pub(crate) first: [[[[BitModel; 3]; 3]; 4]; 2],
-    /// "A new UV" once the first candidate is refused: by (more than one candidate, the
-    /// face's new UVs so far).
-    pub(crate) new: [[BitModel; 3]; 2],
-    /// Truncated unary over the remaining ranks, then the explicit escape.
-    pub(crate) rank: [BitModel; 4],
-    /// "A new UV" for a vertex without candidates (else the explicit escape).
-    pub(crate) fresh: BitModel,
-    pub(crate) residual: [[IntModel; 2]; 6],
-}
-
-impl Models {
-    fn new() -> Self {
-        Self {
-            first: [[[[BitModel::default(); 3]; 3]; 4]; 2],
-            new: [[BitModel::default(); 3]; 2],
-            rank: [BitModel::default(); 4],
-            fresh: BitModel::default(),
-            residual: std::array::from_fn(|_| std::array::from_fn(|_| IntModel::new(0))),
-        }
-    }
-}
-
-/// What the walk has coded so far, identical on both sides.
-pub(crate) struct Atlas<'a> {
-    /// The mesh, with its positions when both sides have them (they sharpen the prediction).
-    pub(crate) faces: &'a [[u32; 3]],
-    pub(crate) positions: Option<&'a [[f64; 3]]>,
-    /// For each position edge of a coded face, the first such face.
-    pub(crate) edge_face: EdgeMap<u32>,
-    /// Sums of the lengths of coded UV edges, of their 3D edges, and their count: the
-    /// atlas's scale.
-    pub(crate) uv_length: f64,
-    pub(crate) length_3d: f64,
-    pub(crate) edges: f64,
-    /// Whether the last coded face whose UVs have an orientation runs counter-clockwise.
-    pub(crate) ccw: bool,
-    /// Per coded UV: the position vertex of its first corner, a UV it shares an edge with
-    /// (`u32::MAX` if none), and whether its first face runs counter-clockwise in UV space.
-    pub(crate) vertex: Vec<u32>,
-    pub(crate) neighbour: Vec<u32>,
-    pub(crate) ccw_at: Vec<bool>,
-    /// UVs in coding order (indices are "coded indices").
-    pub(crate) uv: Vec<[u32; 2]>,
-    pub(crate) uv_faces: Vec<[u32; 3]>,
-    /// UVs used so far at each position vertex, in order of first use.
-    pub(crate) candidates: Vec<Vec<u32>>,
-    /// Per coded UV, the number of the last face that used it.
-    pub(crate) last_used: Vec<u32>,
-    /// For each coded UV edge, the third UV of the first face that had it.
-    pub(crate) opposite: EdgeMap<u32>,
-}
-
-/// The encoder's input: the atlas as given, and where each of its UVs went.
-pub(crate) struct Truth<'a> {
-    pub(crate) uv_faces: &'a [[u32; 3]],
-    pub(crate) uv: &'a [[u32; 2]],
-    /// Coded index of each input UV, `u32::MAX` until it is coded.
-    pub(crate) coded_index: Vec<u32>,
-}
-
-impl<'a> Truth<'a> {
-    fn new(uv_faces: &'a [[u32; 3]], uv: &'a [[u32; 2]]) -> Self {
-        Self { uv_faces, uv, coded_index: vec![u32::MAX; uv.len()] }
-    }
 }
 
 /// Codes (or, without `truth`, decodes) the whole atlas; returns it in coded numbering.
@@ -575,6 +503,7 @@ mod meter {
     //! The ideal code length of each class of symbol, from shadow copies of the adaptive
     //! models (same update rule as `ec`), to see where the bits of an atlas go.
     use super::*;
+    use crate::stream::ec::{BitModel, IntModel};
     use crate::texture::uv_prediction::Prediction;
     use std::collections::HashMap;
 
