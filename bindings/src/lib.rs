@@ -11,6 +11,7 @@ mod meshio;
 mod obj;
 mod options;
 mod ply;
+mod text;
 mod transfer;
 mod uv;
 use std::ffi::CString;

@@ -7,7 +7,7 @@ use std::borrow::Cow;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 
-use crate::meshio::*;
+use crate::text::*;
 
 struct ObjFace {
     size: usize,

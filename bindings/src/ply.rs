@@ -5,7 +5,7 @@
 use pyo3::prelude::*;
 use rustc_hash::FxHashMap;
 
-use crate::meshio::*;
+use crate::text::*;
 
 #[derive(Clone, Copy, PartialEq)]
 enum Ty {
