@@ -9,7 +9,9 @@ the first, at total rate and at texture rate. Variants, joined with ``+``:
 - ``ss``: supersampled transfer (the atlas transferred at twice its side, then 2 x 2 box-averaged);
 - ``fullpack``: xatlas packing on the atlas's full resolution instead of half;
 - ``pN``: SVT-AV1 preset N;
-- ``sN``: an atlas of side N.
+- ``sN``: an atlas of side N;
+- ``mcN``, ``itN``: xatlas charting with ``max_cost`` N (default 2: larger charts above) or
+  ``max_iterations`` N (default 1).
 
     python experiments/texture_stage_variants.py liam_textured 28 default,ss,fullpack,p4 [26,30,34,38,42]
 """
@@ -48,6 +50,17 @@ def configure(variant: str, size: int, originals: dict) -> int:
         return pack
 
     atlas._packing = full if "fullpack" in tokens else originals["pack"]
+
+    def charting():
+        options = originals["chart"]()
+        for t in tokens:
+            if t.startswith("mc"):
+                options.max_cost = float(t[2:])
+            elif t.startswith("it"):
+                options.max_iterations = int(t[2:])
+        return options
+
+    atlas._charting = charting
     preset = next((int(t[1:]) for t in tokens if t[0] == "p" and t[1:].isdigit()), None)
     video.encode_video = lambda im, c="hevc", q=32, preset_=None: originals["video"](im, c, q, preset=preset if preset is not None else preset_)
     return next((int(t[1:]) for t in tokens if t[0] == "s" and t[1:].isdigit()), size)
@@ -60,7 +73,8 @@ def main() -> int:
     frames = [dynmesh.read_mesh(p) for p in sorted((hull.SHARED / "data" / seq).glob("*.obj"))[:count]]
     size = texture.atlas_size_for(*coder._texture_shape(frames[0]))
     geometry_bytes, kept = hull.geometry_pass(frames, gqp, {})
-    originals = {"transfer": _core.transfer_texture, "pack": atlas._packing, "video": video.encode_video}
+    originals = {"transfer": _core.transfer_texture, "pack": atlas._packing, "chart": atlas._charting,
+                 "video": video.encode_video}
     results = {}
     for variant in variants:
         side = configure(variant, size, originals)
