@@ -33,8 +33,8 @@ def _packing(size: int):
 
 def _charting():
     """xatlas's charting: 4 iterations of chart growing instead of its default 1. Measured on
-    the encoder's own atlases (``experiments/texture_stage_variants.py``, geometry QP 28,
-    texture QP 26-42, Y BD-rate at total rate against 1 iteration): 2, 4 and 8 iterations gave
+    the encoder's own atlases (``experiments/texture_stage_variants.py``, variants ``it1``,
+    ``it2``, ...; geometry QP 28, texture QP 26-42, Y BD-rate at total rate against 1 iteration): 2, 4 and 8 iterations gave
     -1.3, -3.3 and -2.3 % on liam_textured and -2.4, -1.5 and -0.8 % on basketball_textured,
     for 0.03, 0.11 and 0.3 s more per atlas; a larger ``max_cost`` was no better (-2.2 and
     -0.5 %, with 4 iterations -4.5 and +7.5 %)."""
