@@ -124,19 +124,9 @@ fn render_million() {
     line("render", &size, runs, wall, cpu, "textured (2048 x 2048 checker)");
 }
 
-/// `n` x `n` quads of a wavy sheet over [-1, 1]^2 with UV = position, facing +z.
+/// The test meshes' wavy sheet as a textured mesh.
 fn wavy_sheet(n: u32) -> UvMesh {
-    let s = 2.0 / n as f64;
-    let p: Vec<[f64; 3]> = (0..=n)
-        .flat_map(|j| (0..=n).map(move |i| (i as f64 * s - 1.0, j as f64 * s - 1.0)))
-        .map(|(x, y)| [x, y, 0.2 * (3.0 * x).sin() * (2.0 * y).cos()])
-        .collect();
-    let uv = p.iter().map(|q| [0.5 * (q[0] + 1.0), 0.5 * (q[1] + 1.0)]).collect();
-    let at = |i: u32, j: u32| j * (n + 1) + i;
-    let f: Vec<[u32; 3]> = (0..n)
-        .flat_map(|j| (0..n).map(move |i| (i, j)))
-        .flat_map(|(i, j)| [[at(i, j), at(i + 1, j), at(i + 1, j + 1)], [at(i, j), at(i + 1, j + 1), at(i, j + 1)]])
-        .collect();
+    let ((p, f), uv) = testmesh::wavy_sheet(n);
     UvMesh { mesh: Mesh::new(p, f.clone()), uv, uv_faces: f }
 }
 

@@ -117,3 +117,20 @@ pub fn grid(nx: u32, ny: u32, h: f64, origin: [f64; 3]) -> Soup {
     }
     (pos, faces)
 }
+
+/// `n` x `n` quads of a wavy sheet over [-1, 1]^2 facing +z, with UV = position mapped to
+/// [0, 1]^2: (positions, faces, one UV per vertex).
+pub fn wavy_sheet(n: u32) -> (Soup, Vec<[f64; 2]>) {
+    let s = 2.0 / n as f64;
+    let p: Vec<[f64; 3]> = (0..=n)
+        .flat_map(|j| (0..=n).map(move |i| (i as f64 * s - 1.0, j as f64 * s - 1.0)))
+        .map(|(x, y)| [x, y, 0.2 * (3.0 * x).sin() * (2.0 * y).cos()])
+        .collect();
+    let uv = p.iter().map(|q| [0.5 * (q[0] + 1.0), 0.5 * (q[1] + 1.0)]).collect();
+    let at = |i: u32, j: u32| j * (n + 1) + i;
+    let f = (0..n)
+        .flat_map(|j| (0..n).map(move |i| (i, j)))
+        .flat_map(|(i, j)| [[at(i, j), at(i + 1, j), at(i + 1, j + 1)], [at(i, j), at(i + 1, j + 1), at(i, j + 1)]])
+        .collect();
+    ((p, f), uv)
+}
