@@ -159,6 +159,15 @@ def test_synth_writes_one_surface_kinds(tmp_path, kind):
     assert run("synth", tmp_path / "x", "--kind", "teapot", check=False).returncode == 1
 
 
+def test_synth_takes_its_output_as_encode_does_or_positional_but_once(tmp_path):
+    run("synth", "-o", tmp_path / "o", "--frames", "2", "--resolution", "16")
+    assert len(list((tmp_path / "o").glob("frame_*.obj"))) == 2
+    for args, words in [((), "no output directory"), ((tmp_path / "a", "-o", tmp_path / "b"), "two output directories")]:
+        p = run("synth", *args, "--frames", "2", check=False)
+        assert p.returncode == 1 and words in p.stderr, p.stderr
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
 def test_shared_sequence_quality_rises_as_qp_falls(tmp_path):
     folder = shared_sequence("basketball_player")
     psnr = []

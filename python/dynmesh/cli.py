@@ -637,7 +637,9 @@ def parser() -> argparse.ArgumentParser:
     p.set_defaults(run=cmd_metrics)
 
     p = sub.add_parser("synth", help="write a synthetic sequence with time-varying topology")
-    p.add_argument("output", help="output directory")
+    p.add_argument("output", nargs="?", help="output directory")
+    p.add_argument("-o", "--output", dest="output_option", metavar="OUTPUT",
+                   help="the output directory given as encode and decode take theirs")
     p.add_argument("--kind", choices=("metaballs", "fused-gears", "cloth"), default="metaballs",
                    help="metaballs that merge and split (default); two meshing gears whose teeth fuse into one "
                         "surface; a sleeve sliding along an arm (both: parts that move differently inside one surface)")

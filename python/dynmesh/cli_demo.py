@@ -13,6 +13,7 @@ from .cli_paths import check_output_directory
 def cmd_synth(a) -> dict:
     from . import synth
 
+    a.output = _synth_output(a.output, a.output_option)
     check_output_directory(a.output)
     resolution = {} if a.resolution is None else {"resolution": a.resolution}
     meshes = {
@@ -24,6 +25,15 @@ def cmd_synth(a) -> dict:
     if not a.json:
         print(f"wrote {len(paths)} frames to {a.output}")
     return {"frames": [str(p) for p in paths]}
+
+
+def _synth_output(positional: str | None, option: str | None) -> str:
+    """The output directory of ``synth``, given either way but once."""
+    if positional is None and option is None:
+        raise ValueError("no output directory: give one, as in `dynmesh synth frames/` or `dynmesh synth -o frames/`")
+    if positional is not None and option is not None and positional != option:
+        raise ValueError(f"two output directories ({positional} and -o {option}); give one")
+    return positional if positional is not None else option
 
 
 def cmd_demo(a) -> dict:
