@@ -1,0 +1,66 @@
+"""Our closest-point BVH and QEM decimation against parry3d and meshoptimizer (issue 48: keep
+ours only where the library is not as fast and as good).
+
+Runs the Rust example ``core/examples/library_comparison.rs`` (release build, feature
+``compare-libraries``) ``--repeat`` times and reports the median milliseconds of each
+measurement, with the example's note (how far the answers differ, how far each decimation
+lies from its input):
+
+- ``bvh build`` and ``closest point``: a bumpy 40k-triangle sphere, 160k queries in parallel;
+- ``qem decimation``: the first frame of dancer and of basketball_player (``../shared/data``;
+  skipped when absent) to 6 % of its faces, the base ratio at the default QP.
+
+    python bench/bench_libraries.py [--repeat 3] [--print-only]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+from pathlib import Path
+
+from common import SHARED_DATA, markdown_table, write_section
+
+ROOT = Path(__file__).resolve().parents[1]
+COLUMNS = [("measurement", "measurement", "s"), ("size", "size", "s"), ("implementation", "implementation", "s"),
+           ("ms", "median ms", ".1f"), ("note", "note", "s")]
+CAPTURES = ["dancer", "basketball_player"]
+
+
+def run(meshes: list[Path]) -> list[dict]:
+    """One run of the example: its JSON lines, in order."""
+    out = subprocess.run(["cargo", "run", "--quiet", "--release", "-p", "dynmesh", "--features", "compare-libraries",
+                          "--example", "library_comparison", "--", *map(str, meshes)],
+                         cwd=ROOT, check=True, capture_output=True, text=True).stdout
+    return [json.loads(line) for line in out.splitlines() if line.strip()]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--print-only", action="store_true", help="do not write docs/benchmarks.md")
+    a = ap.parse_args()
+    meshes = [sorted((SHARED_DATA / c).glob("*.obj"))[0] for c in CAPTURES if (SHARED_DATA / c).is_dir()]
+    load = os.getloadavg()[0]
+    runs = [run(meshes) for _ in range(a.repeat)]
+    rows = []
+    for lines in zip(*runs):
+        rows.append({**lines[0], "ms": statistics.median(r["ms"] for r in lines)})
+    table = markdown_table(rows, COLUMNS)
+    print(table)
+    if not a.print_only:
+        write_section("our kernels against libraries", (
+            f"`core/examples/library_comparison.rs` (release build, feature `compare-libraries`), median of {a.repeat} "
+            "runs. `bvh`: parry3d-f64 0.17's `TriMesh` (its QBVH) and `project_local_point` against `geom::bvh::Bvh` on a "
+            "bumpy 40k-triangle sphere, 160k closest-point queries in parallel on the rayon pool. `qem`: meshoptimizer 0.4's "
+            "`simplify` (target error unbounded, so that it reaches the face count) against `base::decimate` on the first "
+            f"frame of {', '.join(CAPTURES)} (`../shared/data`), to 6 % of the faces; distance: RMS of the larger direction's "
+            "area-weighted squared distance at face centroids (as the encoder's decision measures it), in units of the "
+            f"input box's largest side. The machine is shared (load average {load:.1f} at the start).\n\n" + table))
+
+
+if __name__ == "__main__":
+    main()

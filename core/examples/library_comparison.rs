@@ -1,0 +1,131 @@
+//! Our closest-point BVH and QEM decimation against well-kept libraries doing the same job
+//! (issue 48: keep ours only where theirs is not as fast and as good), one JSON object per line
+//! (`bench/bench_libraries.py` runs it and writes the table to docs/benchmarks.md):
+//!
+//!     cargo run --release -p dynmesh --features compare-libraries --example library_comparison [-- MESH.obj ...]
+//!
+//! - `bvh`: build, then 160k closest-point queries in parallel from points around a bumpy
+//!   40k-triangle sphere (the encoder's displacement fit and anchor ask this), against
+//!   parry3d-f64's `TriMesh` (its QBVH) and `project_local_point`; the largest difference of
+//!   the distances found says whether both answer the same.
+//! - `qem`: each OBJ given (a captured frame) decimated to 6 % of its faces (the base ratio
+//!   at the default QP) by `base::decimate` and by meshoptimizer's `simplify` (target error
+//!   unbounded, so that it reaches the count), the result's distance to the input measured as
+//!   the encoder's decision measures it (area-weighted squared distance at face centroids,
+//!   both directions, the larger), as RMS in units of the input box's largest side.
+
+use std::time::Instant;
+
+use dynmesh::base::decimate::decimate;
+use dynmesh::geom::bvh::Bvh;
+use dynmesh::geom::mesh::{normalize, scale};
+use parry3d_f64::math::Point;
+use parry3d_f64::query::PointQuery;
+use parry3d_f64::shape::TriMesh;
+use rayon::prelude::*;
+
+/// `testmesh` names its vector helpers by `crate::geom::mesh`.
+mod geom {
+    pub use dynmesh::geom::mesh;
+}
+
+#[allow(dead_code)]
+#[path = "../src/geom/testmesh.rs"]
+mod testmesh;
+
+fn main() {
+    let meshes: Vec<String> = std::env::args().skip(1).collect();
+    bvh();
+    for path in &meshes {
+        qem(path);
+    }
+}
+
+fn seconds<T>(f: impl FnOnce() -> T) -> (T, f64) {
+    let t = Instant::now();
+    let r = f();
+    (r, t.elapsed().as_secs_f64())
+}
+
+fn bvh() {
+    let radius = |t: f64, f: f64| 500.0 + 20.0 * (5.0 * t).sin() * (7.0 * f).cos();
+    let (pos, faces) = testmesh::uv_sphere(100, 201, radius);
+    let mut rng = testmesh::Rng(7);
+    let queries: Vec<[f64; 3]> = (0..160_000).map(|_| scale(normalize(rng.point(-1.0, 1.0)), rng.range(480.0, 520.0))).collect();
+    let (ours, ours_build) = seconds(|| Bvh::new(&pos, &faces));
+    let (d_ours, ours_query) = seconds(|| queries.par_iter().map(|&q| ours.closest_point(q).expect("a surface").dist2.sqrt()).collect::<Vec<f64>>());
+    let points: Vec<Point<f64>> = pos.iter().map(|p| Point::new(p[0], p[1], p[2])).collect();
+    let (theirs, theirs_build) = seconds(|| TriMesh::new(points, faces.clone()));
+    let (d_theirs, theirs_query) = seconds(|| {
+        queries
+            .par_iter()
+            .map(|q| {
+                let p = Point::new(q[0], q[1], q[2]);
+                (theirs.project_local_point(&p, false).point - p).norm()
+            })
+            .collect::<Vec<f64>>()
+    });
+    let differ = d_ours.iter().zip(&d_theirs).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let size = format!("{} triangles, {} queries", faces.len(), queries.len());
+    line("bvh build", &size, "dynmesh Bvh", ours_build, "");
+    line("bvh build", &size, "parry3d-f64 TriMesh", theirs_build, "");
+    line("closest point", &size, "dynmesh Bvh", ours_query, "");
+    line("closest point", &size, "parry3d-f64 TriMesh", theirs_query, &format!("distances differ by at most {differ:.2e}"));
+}
+
+fn qem(path: &str) {
+    let (pos, faces) = read_obj(path);
+    let target = ((faces.len() as f64) * 0.06).ceil() as usize;
+    let name = std::path::Path::new(path).file_name().map_or(path.to_string(), |n| n.to_string_lossy().into_owned());
+    let size = format!("{name}: {} -> {target} faces", faces.len());
+    let input = Bvh::new(&pos, &faces);
+    let (ours, t_ours) = seconds(|| decimate(&pos, &faces, target));
+    let e = rms_distance(&ours.positions, &ours.faces, &pos, &faces, &input);
+    line("qem decimation", &size, "dynmesh base::decimate", t_ours, &format!("{} faces, RMS distance {e:.2e} of the box", ours.faces.len()));
+    let flat: Vec<f32> = pos.iter().flat_map(|p| p.map(|c| c as f32)).collect();
+    let bytes: &[u8] = unsafe { std::slice::from_raw_parts(flat.as_ptr().cast(), flat.len() * 4) };
+    let adapter = meshopt::VertexDataAdapter::new(bytes, 12, 0).expect("positions");
+    let indices: Vec<u32> = faces.iter().flatten().copied().collect();
+    let (kept, t_theirs) = seconds(|| meshopt::simplify(&indices, &adapter, target * 3, f32::MAX, meshopt::SimplifyOptions::None, None));
+    let theirs: Vec<[u32; 3]> = kept.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+    let e = rms_distance(&pos, &theirs, &pos, &faces, &input);
+    line("qem decimation", &size, "meshoptimizer simplify", t_theirs, &format!("{} faces, RMS distance {e:.2e} of the box (positions kept, not refitted)", theirs.len()));
+}
+
+/// RMS of the larger direction's area-weighted squared distance between two surfaces, as a
+/// share of the input box's largest side.
+fn rms_distance(p: &[[f64; 3]], f: &[[u32; 3]], ip: &[[f64; 3]], inf: &[[u32; 3]], input: &Bvh) -> f64 {
+    let one_way = |pos: &[[f64; 3]], faces: &[[u32; 3]], other: &Bvh| {
+        let (w, a) = faces.iter().map(|t| other.area_weighted_dist2(t.map(|v| pos[v as usize]))).fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+        if a > 0.0 { w / a } else { 0.0 }
+    };
+    let mse = one_way(p, f, input).max(one_way(ip, inf, &Bvh::new(p, f)));
+    let side = (0..3).map(|k| ip.iter().map(|q| q[k]).fold(f64::MIN, f64::max) - ip.iter().map(|q| q[k]).fold(f64::MAX, f64::min)).fold(0.0, f64::max);
+    mse.sqrt() / side
+}
+
+/// Positions and triangles of an OBJ file (`v` lines, `f` lines fanned; indices 1-based).
+fn read_obj(path: &str) -> (Vec<[f64; 3]>, Vec<[u32; 3]>) {
+    let text = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let (mut pos, mut faces) = (Vec::new(), Vec::new());
+    for l in text.lines() {
+        let mut t = l.split_whitespace();
+        match t.next() {
+            Some("v") => pos.push([0, 1, 2].map(|_| t.next().and_then(|x| x.parse().ok()).expect("a coordinate"))),
+            Some("f") => {
+                let c: Vec<u32> = t.map(|x| x.split('/').next().and_then(|i| i.parse::<u32>().ok()).expect("an index") - 1).collect();
+                faces.extend((1..c.len() - 1).map(|k| [c[0], c[k], c[k + 1]]));
+            }
+            _ => {}
+        }
+    }
+    (pos, faces)
+}
+
+fn line(what: &str, size: &str, by: &str, seconds: f64, note: &str) {
+    let row = format!(
+        "{{\"measurement\": \"{what}\", \"size\": \"{size}\", \"implementation\": \"{by}\", \"ms\": {:.1}, \"note\": \"{note}\"}}",
+        seconds * 1e3
+    );
+    println!("{row}");
+}
