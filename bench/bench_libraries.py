@@ -8,7 +8,8 @@ lies from its input):
 
 - ``bvh build`` and ``closest point``: a bumpy 40k-triangle sphere, 160k queries in parallel;
 - ``qem decimation``: the first frame of dancer and of basketball_player (``../shared/data``;
-  skipped when absent) to 6 % of its faces, the base ratio at the default QP.
+  skipped when absent) to 6 % of its faces, the base ratio at the default QP; each result's
+  distance to the input as decimated, and refitted and subdivided as the codec uses it.
 
     python bench/bench_libraries.py [--repeat 3] [--print-only]
 """
@@ -59,7 +60,9 @@ def main() -> None:
             "`simplify` (target error unbounded, so that it reaches the face count) against `base::decimate` on the first "
             f"frame of {', '.join(CAPTURES)} (`../shared/data`), to 6 % of the faces; distance: RMS of the larger direction's "
             "area-weighted squared distance at face centroids (as the encoder's decision measures it), in units of the "
-            f"input box's largest side. The machine is shared (load average {load:.1f} at the start).\n\n" + table))
+            "input box's largest side, of the decimated mesh and of the surface the codec predicts from it (refitted by "
+            "`base::refit`, subdivided midpoint, midpoint, Loop; before displacements). "
+            f"The machine is shared (load average {load:.1f} at the start).\n\n" + table))
 
 
 if __name__ == "__main__":
