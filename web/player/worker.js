@@ -21,8 +21,7 @@
 // stream there: the frames decoded by then have been posted).
 
 import { Decoder } from '../src/decoder.js';
-import { readHeader, readUnit, readUnits, INTRA, PREDICTED, TEXTURE_UNIT } from '../src/stream/bitstream.js';
-import { DecodeError } from '../src/error.js';
+import { readFrameUnit, readHeader, readUnits, unitEnd, INTRA, TEXTURE_UNIT } from '../src/stream/bitstream.js';
 import { frameUvs } from '../src/texture/unit.js';
 
 /** A sequence header is under 100 bytes: with this many in and none parsed, the stream is bad. */
@@ -103,23 +102,19 @@ function split() {
     started();
   }
   const h = input.header, units = input.units, before = units.length;
-  const whole = (pos) => pos + 5 <= data.length && pos + 9 + new DataView(data.buffer, pos + 1, 4).getUint32(0, true) <= data.length;
-  while (units.length < h.frameCount && whole(input.pos)) {
-    const f = units.length, pos = input.pos;
-    const u = readUnit(data, pos, f);
-    if (u.type !== INTRA && u.type !== PREDICTED) throw new DecodeError(f, pos, `unit type ${u.type} where a frame unit was expected`);
+  const inData = (end) => end !== null && end <= data.length;
+  while (units.length < h.frameCount && inData(unitEnd(data, input.pos))) {
+    const f = units.length;
     // Whether a texture unit follows shows in the next byte (or the end of the stream).
-    if (u.next === data.length && !input.ended) break;
-    let texture = null, next = u.next;
-    if (next < data.length && data[next] === TEXTURE_UNIT) {
-      if (!whole(next)) break;
-      const t = readUnit(data, next, f);
-      texture = { offset: t.offset, length: t.length };
-      next = t.next;
-      const payload = data.slice(t.offset, t.offset + t.length).buffer;
+    const after = unitEnd(data, input.pos);
+    if (after === data.length && !input.ended) break;
+    if (after < data.length && data[after] === TEXTURE_UNIT && !inData(unitEnd(data, after))) break;
+    const { unit, next } = readFrameUnit(data, input.pos, f);
+    if (unit.texture) {
+      const payload = data.slice(unit.texture.offset, unit.texture.offset + unit.texture.length).buffer;
       self.postMessage({ texture: { first: f, payload } }, [payload]);
     }
-    units.push({ type: u.type, offset: u.offset, length: u.length, texture });
+    units.push(unit);
     input.pos = next;
   }
   const complete = input.ended && units.length === h.frameCount && input.pos === input.filled;

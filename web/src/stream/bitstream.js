@@ -170,21 +170,40 @@ export function readUnits(data, header) {
   const units = [];
   let pos = start;
   for (let f = 0; f < header.frameCount; f++) {
-    const u = readUnit(data, pos, f);
-    if (u.type !== INTRA && u.type !== PREDICTED) {
-      throw new DecodeError(f, pos, `unit type ${u.type} where a frame unit was expected`);
-    }
-    pos = u.next;
-    let texture = null;
-    if (pos < data.length && data[pos] === TEXTURE_UNIT) {
-      const t = readUnit(data, pos, f);
-      texture = { offset: t.offset, length: t.length };
-      pos = t.next;
-    }
-    units.push({ type: u.type, offset: u.offset, length: u.length, texture });
+    const { unit, next } = readFrameUnit(data, pos, f);
+    units.push(unit);
+    pos = next;
   }
   if (pos !== data.length) throw new DecodeError(null, pos, `${data.length - pos} unexpected bytes after the last frame`);
   return units;
+}
+
+/**
+ * Frame `frame`'s unit at `pos` and the texture unit after it, if one follows: the unit as
+ * `readUnits` lists it, and where the next frame's unit starts.
+ * @returns {{unit: Unit, next: number}}
+ */
+export function readFrameUnit(data, pos, frame) {
+  const u = readUnit(data, pos, frame);
+  if (u.type !== INTRA && u.type !== PREDICTED) {
+    throw new DecodeError(frame, pos, `unit type ${u.type} where a frame unit was expected`);
+  }
+  let next = u.next, texture = null;
+  if (next < data.length && data[next] === TEXTURE_UNIT) {
+    const t = readUnit(data, next, frame);
+    texture = { offset: t.offset, length: t.length };
+    next = t.next;
+  }
+  return { unit: { type: u.type, offset: u.offset, length: u.length, texture }, next };
+}
+
+/**
+ * Where the unit at `pos` ends (after its type, length, payload and CRC), from its length
+ * field alone, without reading or checking it; null while the length field is not in `data`.
+ */
+export function unitEnd(data, pos) {
+  if (pos + 5 > data.length) return null;
+  return pos + UNIT_OVERHEAD + new DataView(data.buffer, data.byteOffset + pos + 1, 4).getUint32(0, true);
 }
 
 export function readUnit(data, pos, frame) {
