@@ -111,11 +111,7 @@ fn refitted_distance(m: &Mesh, ip: &[[f64; 3]], inf: &[[u32; 3]], input: &Bvh) -
 /// RMS of the larger direction's area-weighted squared distance between two surfaces, as a
 /// share of the input box's largest side.
 fn rms_distance(p: &[[f64; 3]], f: &[[u32; 3]], ip: &[[f64; 3]], inf: &[[u32; 3]], input: &Bvh) -> f64 {
-    let one_way = |pos: &[[f64; 3]], faces: &[[u32; 3]], other: &Bvh| {
-        let (w, a) = faces.iter().map(|t| other.area_weighted_dist2(t.map(|v| pos[v as usize]))).fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
-        if a > 0.0 { w / a } else { 0.0 }
-    };
-    let mse = one_way(p, f, input).max(one_way(ip, inf, &Bvh::new(p, f)));
+    let mse = input.mean_squared_distance(p, f).max(Bvh::new(p, f).mean_squared_distance(ip, inf));
     let side = (0..3).map(|k| ip.iter().map(|q| q[k]).fold(f64::MIN, f64::max) - ip.iter().map(|q| q[k]).fold(f64::MAX, f64::min)).fold(0.0, f64::max);
     mse.sqrt() / side
 }

@@ -2,8 +2,6 @@
 //! whose bytes include what the frame's texture will cost, and whose distortion is an
 //! estimate of D1 that needs no sampling.
 
-use rayon::prelude::*;
-
 use crate::error::InputError;
 use crate::geom::bvh::Bvh;
 use crate::geom::mesh::Mesh;
@@ -90,21 +88,10 @@ impl SequenceEncoder {
     /// vertices instead made predicted frames look 2-4 dB worse than D1 finds them.
     pub(super) fn distortion(&self, reconstruction: &Mesh, input: &Mesh, target: &Bvh) -> f64 {
         let rec = self.in_grid_units(reconstruction);
-        let forward = area_weighted_squared_distance(&rec, &reconstruction.faces, target);
-        let backward = area_weighted_squared_distance(&input.positions, &input.faces, &Bvh::new(&rec, &reconstruction.faces));
+        let forward = target.mean_squared_distance(&rec, &reconstruction.faces);
+        let backward = Bvh::new(&rec, &reconstruction.faces).mean_squared_distance(&input.positions, &input.faces);
         forward.max(backward)
     }
-}
-
-/// Mean squared distance from the surface `(positions, faces)` to `surface`, sampled at face
-/// centroids and weighted by face area (0 for a surface without area).
-fn area_weighted_squared_distance(positions: &[[f64; 3]], faces: &[[u32; 3]], surface: &Bvh) -> f64 {
-    // Summed in order after the parallel map: a parallel reduction's grouping depends on
-    // the thread scheduling, and the decision it feeds must not, or streams would differ
-    // from run to run (and between a sequential and a parallel encode).
-    let terms: Vec<(f64, f64)> = faces.par_iter().map(|f| surface.area_weighted_dist2(f.map(|v| positions[v as usize]))).collect();
-    let (weighted, area) = terms.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
-    if area > 0.0 { weighted / area } else { 0.0 }
 }
 
 #[cfg(test)]
@@ -137,8 +124,8 @@ mod tests {
         let mut m = Mesh::default();
         square(0.0, 1.0, 8, &mut m);
         square(1.0, 0.0, 1, &mut m);
-        let d = area_weighted_squared_distance(&m.positions, &m.faces, &Bvh::new(&plane.positions, &plane.faces));
+        let d = Bvh::new(&plane.positions, &plane.faces).mean_squared_distance(&m.positions, &m.faces);
         assert!((d - 0.5).abs() < 1e-9, "{d}");
-        assert_eq!(area_weighted_squared_distance(&[[0.0; 3]; 3], &[[0, 1, 2]], &Bvh::new(&plane.positions, &plane.faces)), 0.0);
+        assert_eq!(Bvh::new(&plane.positions, &plane.faces).mean_squared_distance(&[[0.0; 3]; 3], &[[0, 1, 2]]), 0.0);
     }
 }

@@ -177,6 +177,18 @@ impl Bvh {
         (area * self.closest_point(centroid).map_or(0.0, |h| h.dist2), area)
     }
 
+    /// Mean squared distance from the surface `(positions, faces)` to this one, sampled at
+    /// face centroids and weighted by face area ([`Self::area_weighted_dist2`]; 0 for a
+    /// surface without area).
+    pub fn mean_squared_distance(&self, positions: &[[f64; 3]], faces: &[[u32; 3]]) -> f64 {
+        // Summed in order after the parallel map: a parallel reduction's grouping depends on
+        // the thread scheduling, and the encoder's decisions this feeds must not, or streams
+        // would differ from run to run (and between a sequential and a parallel encode).
+        let terms: Vec<(f64, f64)> = faces.par_iter().map(|f| self.area_weighted_dist2(f.map(|v| positions[v as usize]))).collect();
+        let (weighted, area) = terms.iter().fold((0.0, 0.0), |x, y| (x.0 + y.0, x.1 + y.1));
+        if area > 0.0 { weighted / area } else { 0.0 }
+    }
+
     /// [`Bvh::closest_point`], searched from triangle `hint` (an index into the face list;
     /// out of range is ignored): the same answer, found faster when the hint is near it, as
     /// the closest triangle of a nearby query or of the previous round of an iteration is.
