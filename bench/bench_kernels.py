@@ -18,25 +18,13 @@ when other work on a shared machine inflates the wall time):
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import statistics
-import subprocess
-from pathlib import Path
 
-from common import markdown_table, write_section
+from common import example_lines, markdown_table, median_rows, write_section
 
-ROOT = Path(__file__).resolve().parents[1]
 MEASUREMENTS = ["bvh", "fit", "render"]
 COLUMNS = [("kernel", "measurement", "s"), ("size", "size", "s"), ("threads", "threads", "d"),
            ("wall_ms", "wall ms", ".1f"), ("cpu_ms", "CPU ms", ".1f"), ("note", "note", "s")]
-
-
-def run(only: list[str]) -> list[dict]:
-    """One run of the example: its JSON lines, in order."""
-    out = subprocess.run(["cargo", "run", "--quiet", "--release", "-p", "dynmesh", "--example", "kernel_timings", "--", *only],
-                         cwd=ROOT, check=True, capture_output=True, text=True).stdout
-    return [json.loads(line) for line in out.splitlines() if line.strip()]
 
 
 def main() -> None:
@@ -45,15 +33,8 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--print-only", action="store_true", help="do not write docs/benchmarks.md")
     a = ap.parse_args()
-    # The same measurements in the same order every run: rows line up by position.
     load = os.getloadavg()[0]
-    runs = [run(a.only) for _ in range(a.repeat)]
-    rows = []
-    for lines in zip(*runs):
-        row = dict(lines[0])
-        row["wall_ms"] = statistics.median(r["wall_ms"] for r in lines)
-        row["cpu_ms"] = statistics.median(r["cpu_ms"] for r in lines)
-        rows.append(row)
+    rows = median_rows([example_lines("kernel_timings", a.only) for _ in range(a.repeat)], ["wall_ms", "cpu_ms"])
     table = markdown_table(rows, COLUMNS)
     print(table)
     if not a.print_only:

@@ -17,26 +17,13 @@ lies from its input):
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import statistics
-import subprocess
-from pathlib import Path
 
-from common import SHARED_DATA, markdown_table, write_section
+from common import SHARED_DATA, example_lines, markdown_table, median_rows, write_section
 
-ROOT = Path(__file__).resolve().parents[1]
 COLUMNS = [("measurement", "measurement", "s"), ("size", "size", "s"), ("implementation", "implementation", "s"),
            ("ms", "median ms", ".1f"), ("note", "note", "s")]
 CAPTURES = ["dancer", "basketball_player"]
-
-
-def run(meshes: list[Path]) -> list[dict]:
-    """One run of the example: its JSON lines, in order."""
-    out = subprocess.run(["cargo", "run", "--quiet", "--release", "-p", "dynmesh", "--features", "compare-libraries",
-                          "--example", "library_comparison", "--", *map(str, meshes)],
-                         cwd=ROOT, check=True, capture_output=True, text=True).stdout
-    return [json.loads(line) for line in out.splitlines() if line.strip()]
 
 
 def main() -> None:
@@ -46,10 +33,8 @@ def main() -> None:
     a = ap.parse_args()
     meshes = [sorted((SHARED_DATA / c).glob("*.obj"))[0] for c in CAPTURES if (SHARED_DATA / c).is_dir()]
     load = os.getloadavg()[0]
-    runs = [run(meshes) for _ in range(a.repeat)]
-    rows = []
-    for lines in zip(*runs):
-        rows.append({**lines[0], "ms": statistics.median(r["ms"] for r in lines)})
+    runs = [example_lines("library_comparison", meshes, ("compare-libraries",)) for _ in range(a.repeat)]
+    rows = median_rows(runs, ["ms"])
     table = markdown_table(rows, COLUMNS)
     print(table)
     if not a.print_only:

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import datetime
+import json
+import statistics
+import subprocess
 import os
 import platform
 import re
@@ -56,3 +59,20 @@ def check_data(sequences: list[str]) -> bool:
     if missing:
         print(f"no data for {', '.join(missing)} under {SHARED_DATA}", file=sys.stderr)
     return not missing
+
+
+def example_lines(example: str, args: list, features: tuple[str, ...] = ()) -> list[dict]:
+    """One run of the core's Rust example ``example`` (release build, with ``features``):
+    the JSON objects it prints, one per line, in order."""
+    root = Path(__file__).resolve().parents[1]
+    extra = ["--features", ",".join(features)] if features else []
+    out = subprocess.run(["cargo", "run", "--quiet", "--release", "-p", "dynmesh", *extra, "--example", example, "--",
+                          *map(str, args)], cwd=root, check=True, capture_output=True, text=True).stdout
+    return [json.loads(line) for line in out.splitlines() if line.strip()]
+
+
+def median_rows(runs: list[list[dict]], keys: list[str]) -> list[dict]:
+    """Rows of the first run with each of ``keys`` replaced by its median over the runs (the
+    runs print the same measurements in the same order, so rows line up by position)."""
+    return [{**lines[0], **{k: statistics.median(r[k] for r in lines) for k in keys}} for lines in zip(*runs)]
+

@@ -31,6 +31,15 @@ def uv_sphere(rings: int = 16, segments: int = 24, radius: float = 1.0, center=(
     return Mesh(pos, np.array(faces))
 
 
+def one_line_error(p, *words) -> None:
+    """The command (a finished subprocess) failed with status 1 and said why in one line,
+    with each of ``words``, and nothing else."""
+    assert p.returncode == 1, (p.returncode, p.stderr)
+    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
+    for w in words:
+        assert w in p.stderr, p.stderr
+
+
 def wobbly_sequence(frames: int = 3, rings: int = 20, segments: int = 30) -> list[Mesh]:
     """Spheres with a moving bump: same topology, changing shape."""
     out = []

@@ -15,7 +15,7 @@ import pytest
 import dynmesh
 from dynmesh.io import write_mesh
 
-from conftest import wobbly_sequence
+from conftest import one_line_error, wobbly_sequence
 
 ROOT = Path(__file__).resolve().parents[1]
 TEXTURED = ROOT / "tests" / "vectors" / "textured_mixed.dmsh"
@@ -23,14 +23,6 @@ TEXTURED = ROOT / "tests" / "vectors" / "textured_mixed.dmsh"
 
 def run(*args, **kwargs):
     return subprocess.run([sys.executable, "-m", "dynmesh", *map(str, args)], capture_output=True, text=True, **kwargs)
-
-
-def one_line_error(p, *words):
-    """The command failed with status 1 and said why in one line, nothing else."""
-    assert p.returncode == 1, (p.returncode, p.stderr)
-    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
-    for w in words:
-        assert w in p.stderr, p.stderr
 
 
 @pytest.fixture(scope="module")

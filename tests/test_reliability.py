@@ -12,18 +12,11 @@ import pytest
 import dynmesh
 from dynmesh.io import write_mesh
 
-from conftest import wobbly_sequence
+from conftest import one_line_error, wobbly_sequence
 
 
 def run(*args):
     return subprocess.run([sys.executable, "-m", "dynmesh", *map(str, args)], capture_output=True, text=True)
-
-
-def assert_clean_failure(p, *words):
-    assert p.returncode == 1, p.stderr
-    assert "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1, p.stderr
-    for w in words:
-        assert w in p.stderr, p.stderr
 
 
 @pytest.fixture(scope="module")
@@ -58,14 +51,14 @@ def test_encode_never_overwrites_an_input_frame(tmp_path, frames_dir, how):
         out.symlink_to(frame)
     elif how == "hard link":
         os.link(frame, out)
-    assert_clean_failure(run("encode", frame, "-o", out), "refusing to overwrite")
+    one_line_error(run("encode", frame, "-o", out), "refusing to overwrite")
     assert frame.read_bytes() == before
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted({"frame.obj", out.name})
 
 
 def test_encode_refuses_to_write_over_one_frame_of_a_sequence(tmp_path, frames_dir):
     before = (frames_dir / "f2.obj").read_bytes()
-    assert_clean_failure(run("encode", frames_dir, "-o", frames_dir / "f2.obj"), "f2.obj")
+    one_line_error(run("encode", frames_dir, "-o", frames_dir / "f2.obj"), "f2.obj")
     assert (frames_dir / "f2.obj").read_bytes() == before
 
 
@@ -73,12 +66,12 @@ def test_decode_never_overwrites_its_stream(tmp_path, frames_dir):
     stream = tmp_path / "s.dmsh"
     assert run("encode", frames_dir, "-o", stream, "-q").returncode == 0
     before = stream.read_bytes()
-    assert_clean_failure(run("decode", stream, "-o", stream), "refusing")
+    one_line_error(run("decode", stream, "-o", stream), "refusing")
     # A stream named like a decoded frame, inside the output directory.
     out = tmp_path / "out"
     out.mkdir()
     (out / "frame_0001.obj").write_bytes(before)
-    assert_clean_failure(run("decode", out / "frame_0001.obj", "-o", out), "refusing")
+    one_line_error(run("decode", out / "frame_0001.obj", "-o", out), "refusing")
     assert stream.read_bytes() == before and (out / "frame_0001.obj").read_bytes() == before
     assert sorted(p.name for p in out.iterdir()) == ["frame_0001.obj"]
 
@@ -90,12 +83,12 @@ def test_a_failed_decode_leaves_no_directory_and_no_partial_frames(tmp_path, fra
     data[unit_starts(bytes(data))[2] + 20] ^= 0x10
     stream.write_bytes(bytes(data))
     out = tmp_path / "new" / "deeper" / "out"
-    assert_clean_failure(run("decode", stream, "-o", out), "frame 2", "--skip-damaged")
+    one_line_error(run("decode", stream, "-o", out), "frame 2", "--skip-damaged")
     assert not (tmp_path / "new").exists()
     existing = tmp_path / "existing"
     existing.mkdir()
     (existing / "keep.txt").write_text("mine")
-    assert_clean_failure(run("decode", stream, "-o", existing), "frame 2")
+    one_line_error(run("decode", stream, "-o", existing), "frame 2")
     assert [p.name for p in existing.iterdir()] == ["keep.txt"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["existing", "s.dmsh"]
 
@@ -103,12 +96,12 @@ def test_a_failed_decode_leaves_no_directory_and_no_partial_frames(tmp_path, fra
 def test_an_unwritable_output_is_reported_by_the_users_path(tmp_path, frames_dir):
     out = tmp_path / "missing_dir" / "s.dmsh"
     p = run("encode", frames_dir, "-o", out, "-q")
-    assert_clean_failure(p, str(out))
+    one_line_error(p, str(out))
     assert ".tmp" not in p.stderr
     # A directory where the stream should go.
     (tmp_path / "adir").mkdir()
     p = run("encode", frames_dir, "-o", tmp_path / "adir", "-q")
-    assert_clean_failure(p, str(tmp_path / "adir"))
+    one_line_error(p, str(tmp_path / "adir"))
     assert ".tmp" not in p.stderr and list((tmp_path / "adir").iterdir()) == []
 
 
@@ -180,7 +173,7 @@ def test_a_damaged_header_is_a_clear_error_even_with_skip_damaged(tmp_path, pred
     stream = tmp_path / "h.dmsh"
     stream.write_bytes(bytes(data))
     out = tmp_path / "out"
-    assert_clean_failure(run("decode", stream, "-o", out, "--skip-damaged"), "header CRC")
+    one_line_error(run("decode", stream, "-o", out, "--skip-damaged"), "header CRC")
     assert not out.exists()
 
 
@@ -207,7 +200,7 @@ def test_encoding_a_million_vertices_on_one_point_answers_at_once(tmp_path):
         f.write("".join(f"f {3 * i + 1} {3 * i + 2} {3 * i + 3}\n" for i in range(333_333)))
     p = subprocess.run([sys.executable, "-m", "dynmesh", "encode", path, "-o", tmp_path / "p.dmsh"],
                        capture_output=True, text=True, timeout=60)
-    assert_clean_failure(p, "degenerate")
+    one_line_error(p, "degenerate")
     assert not (tmp_path / "p.dmsh").exists()
 
 
@@ -223,13 +216,13 @@ def test_a_triangle_soup_and_a_dense_fan_are_refused(tmp_path):
     for name, words in (("soup", "pieces"), ("fan", "share a few vertices")):
         p = subprocess.run([sys.executable, "-m", "dynmesh", "encode", tmp_path / f"{name}.obj", "-o", tmp_path / "x.dmsh"],
                            capture_output=True, text=True, timeout=60)
-        assert_clean_failure(p, words)
+        one_line_error(p, words)
 
 
 def test_metrics_never_report_a_non_number(tmp_path, frames_dir):
     write_obj(tmp_path / "flat.obj", [(0, 0, 0), (1, 0, 0), (2, 0, 0)], [(0, 1, 2), (0, 2, 1)])
-    assert_clean_failure(run("metrics", frames_dir / "f0.obj", tmp_path / "flat.obj"), "frame 0", "no surface")
-    assert_clean_failure(run("metrics", tmp_path / "flat.obj", frames_dir / "f0.obj"), "reference mesh has no surface")
+    one_line_error(run("metrics", frames_dir / "f0.obj", tmp_path / "flat.obj"), "frame 0", "no surface")
+    one_line_error(run("metrics", tmp_path / "flat.obj", frames_dir / "f0.obj"), "reference mesh has no surface")
     with pytest.raises(ValueError, match="no surface"):
         dynmesh.metrics(wobbly_sequence(1)[0], dynmesh.Mesh(np.zeros((3, 3)), np.array([[0, 1, 2]])))
     p = run("metrics", frames_dir / "f0.obj", frames_dir / "f0.obj")
@@ -241,7 +234,7 @@ def test_metrics_never_report_a_non_number(tmp_path, frames_dir):
 def test_metric_grid_sizes_beyond_the_limits_are_refused_at_once(frames_dir, grid, words):
     p = subprocess.run([sys.executable, "-m", "dynmesh", "metrics", frames_dir / "f0.obj", frames_dir / "f1.obj",
                         "--grid-size", grid], capture_output=True, text=True, timeout=30)
-    assert_clean_failure(p, words)
+    one_line_error(p, words)
 
 
 # --------------------------------------------------------------------------- fuzz findings
