@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
 
 import numpy as np
 from scipy.sparse import coo_matrix
@@ -32,23 +31,20 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 import dynmesh
-from dynmesh import _core, api
+from dynmesh import _core, api, texture
 from dynmesh.eval.report import bd_rate
 from dynmesh.mesh import Mesh
 from dynmesh.texture import atlas, video
 
-SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
-#: (glob of the frames, PSNR peak, atlas side) per shared textured capture.
-SEQUENCES = {"liam_textured": ("liam_*.obj", 1770.15149, 1024),
-             "basketball_textured": ("basketball_player_*.obj", 1876.07788, 2048)}
+import texture_qp_hull as hull
+
 GEOMETRY_QP = 28
 
 
 def all_intra_frames(seq: str, count: int):
     """Per frame: (input mesh, decoded base mesh, reconstruction, geometry bytes), coded
     all-intra at ``GEOMETRY_QP``."""
-    pattern, _, _ = SEQUENCES[seq]
-    frames = [dynmesh.read_mesh(f) for f in sorted((SHARED / seq).glob(pattern))[:count]]
+    frames = [dynmesh.read_mesh(f) for f in sorted((hull.SHARED / "data" / seq).glob("*.obj"))[:count]]
     lo, hi = api.sequence_bounds(frames)
     enc = api._encoder(len(frames), lo, hi, {**api.DEFAULTS, "qp": GEOMETRY_QP, "inter": "none"})
     out = []
@@ -58,9 +54,14 @@ def all_intra_frames(seq: str, count: int):
     return out
 
 
+def atlas_side(first) -> int:
+    """The encoder's default atlas side for a capture whose first frame is ``first``."""
+    return texture.atlas_size_for(*texture.coder._texture_shape(first))
+
+
 def charts(seq: str, count: int) -> None:
-    size = SEQUENCES[seq][2]
     coded = all_intra_frames(seq, count)
+    size = atlas_side(coded[0][0])
     for i in range(1, len(coded)):
         base, rec = coded[i - 1][1], coded[i - 1][2]
         _, uv_faces, uv = atlas.coded_atlas(base.positions, base.faces, size)
@@ -207,8 +208,9 @@ def _free_block(used: np.ndarray, w: int, h: int) -> tuple[int, int] | None:
 
 
 def rd(seq: str, count: int, modes: list[str], texture_qps: list[int]) -> None:
-    _, peak, size = SEQUENCES[seq]
+    peak = hull.SEQUENCES[seq][2]
     coded = all_intra_frames(seq, count)
+    size = atlas_side(coded[0][0])
     frames = [c[0] for c in coded]
     curves = {}
     for mode in modes:

@@ -12,21 +12,20 @@ from __future__ import annotations
 
 import csv
 import sys
-from pathlib import Path
 
 import dynmesh
 from dynmesh import api
 from dynmesh.mesh import Mesh
 from dynmesh.texture import video
 
-SHARED = Path(__file__).resolve().parents[2] / "shared"
-PEAKS = {"liam_textured": 1770.15149, "basketball_textured": 1876.07788}
+import texture_qp_hull as hull
+
 
 
 def main() -> int:
     seq = sys.argv[1] if len(sys.argv) > 1 else "liam_textured"
     qps = [int(q) for q in (sys.argv[2] if len(sys.argv) > 2 else "22,29,35,41").split(",")]
-    source = dynmesh.read_mesh(sorted((SHARED / "data" / seq).glob("*.obj"))[0])
+    source = dynmesh.read_mesh(sorted((hull.SHARED / "data" / seq).glob("*.obj"))[0])
     image = api._image_of(source)
     print(f"{seq}, frame 0's source texture ({image.shape[1]} x {image.shape[0]}) on its own mesh:")
     for codec in ("hevc", "av1"):
@@ -34,9 +33,9 @@ def main() -> int:
             data = video.encode_video([image], codec, qp)
             decoded = Mesh(source.positions, source.faces, uvs=source.uvs, uv_faces=source.uv_faces,
                            image=next(video.decode_video(data, codec)))
-            y = api.metrics(source, decoded, peak=PEAKS[seq])["y_psnr"]
+            y = api.metrics(source, decoded, peak=hull.SEQUENCES[seq][2])["y_psnr"]
             print(f"  {codec} texture QP {qp}: {len(data)} bytes, Y {y:.2f} dB")
-    with open(SHARED / "anchors" / "tm14_textured_anchor.csv") as f:
+    with open(hull.SHARED / "anchors" / "tm14_textured_anchor.csv") as f:
         for r in csv.DictReader(f):
             if r["seq"] == seq and r["cond"] == "AI":
                 print(f"  test model AI {r['rate']}: {int(r['tex_bytes']) / int(r['frames']):.0f} texture bytes per frame, Y {float(r['y']):.2f} dB")
