@@ -24,7 +24,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use dynmesh::stream::bitstream::{FrameType, SequenceHeader};
-use dynmesh::stream::texture_payload::{TexturePayload, TEXTURE_CODECS};
+use dynmesh::stream::texture_payload::{TexturePayload, MAX_SIDE, MIN_SIDE, TEXTURE_CODECS};
 use dynmesh::decoder;
 use dynmesh::encoder::{FrameStats, SequenceEncoder, TextureCost};
 use dynmesh::error::DecodeError as CoreDecodeError;
@@ -377,6 +377,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(pack_texture_payload, m)?)?;
     m.add_function(wrap_pyfunction!(read_texture_payload, m)?)?;
     m.add("TEXTURE_CODECS", TEXTURE_CODECS.to_vec())?;
+    m.add("TEXTURE_SIDES", (MIN_SIDE, MAX_SIDE))?;
     colour::register(m)?;
     uv::register(m)?;
     transfer::register(m)?;

@@ -10,8 +10,8 @@ use pyo3::prelude::*;
 
 use crate::colour::{texture_of, valid_uv_mesh};
 
-/// Largest atlas side accepted (keeps a typo from allocating gigabytes).
-const MAX_SIDE: usize = 16384;
+/// Largest atlas side accepted, the stream's (keeps a typo from allocating gigabytes).
+const MAX_SIDE: usize = dynmesh::stream::texture_payload::MAX_SIDE as usize;
 
 /// Adds the transfer function to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

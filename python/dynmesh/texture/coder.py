@@ -53,9 +53,9 @@ def check_options(options: dict) -> dict:
     """The texture options with defaults filled in; raises ValueError for a bad one.
     ``texture_size`` and ``texture_qp`` may be None: chosen by ``resolve_options``."""
     opts = {**TEXTURE_DEFAULTS, **options}
-    size = opts["texture_size"]
-    if size is not None and (not isinstance(size, int) or not (16 <= size <= 16384) or size % 2):
-        raise ValueError(f"texture_size must be an even integer from 16 to 16384, not {size!r}")
+    size, (low, high) = opts["texture_size"], _core.TEXTURE_SIDES
+    if size is not None and (not isinstance(size, int) or not (low <= size <= high) or size % 2):
+        raise ValueError(f"texture_size must be an even integer from {low} to {high}, not {size!r}")
     if opts["texture_codec"] not in video.CODECS:
         raise ValueError(f"texture_codec must be one of {', '.join(video.CODECS)}, not {opts['texture_codec']!r}")
     qp = opts["texture_qp"]
@@ -67,10 +67,11 @@ def check_options(options: dict) -> dict:
 def atlas_size_for(width: int, height: int) -> int:
     """The atlas side that holds about the texels of a ``width`` x ``height`` source texture:
     the square root of its texel count, to a multiple of 16 (the video's block size), within
-    the 16-16384 the stream allows. A 1024 x 1024 source gives 1024: an atlas of more texels
+    the sides the stream allows (16-16384). A 1024 x 1024 source gives 1024: an atlas of more texels
     than the source has only spends bits on upsampled texture."""
     side = 16 * round((width * height) ** 0.5 / 16)
-    return int(min(16384, max(16, side)))
+    low, high = _core.TEXTURE_SIDES
+    return int(min(high, max(low, side)))
 
 
 def resolve_options(options: dict, qp: int, first: Mesh) -> dict:
