@@ -62,15 +62,16 @@ def transfer_inputs(sequence: str, frames: int) -> list[tuple]:
     size = texture_options["texture_size"]
     enc = api._encoder(len(meshes), *api.sequence_bounds(meshes), opts)
     tex = _texture.TextureEncoder(opts["subdiv"], texture_options, False, estimate_costs=opts["intra_period"] > 1)
-    calls = []
+    coded = []
     for m in meshes:
         enc.set_texture_cost(tex.cost())
         _, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
         image = m.image if m.image is not None else read_image(m.texture)
         tex.add(FrameType(stats["type"]), Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
-        uv, uv_faces = tex.uvs[-1]
-        calls.append((pos, faces, uv, uv_faces, m.positions, m.faces, m.uvs, m.uv_faces, image, size, size))
-    return calls
+        coded.append((pos, faces, m, image))
+    tex.finish()
+    return [(pos, faces, uv, uv_faces, m.positions, m.faces, m.uvs, m.uv_faces, image, size, size)
+            for (pos, faces, m, image), (uv, uv_faces) in zip(coded, tex.uvs)]
 
 
 def time_transfer(sequence: str, frames: int, repeat: int) -> dict:

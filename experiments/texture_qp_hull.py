@@ -62,8 +62,9 @@ def geometry_pass(frames: list[Mesh], qp: int, options: dict) -> tuple[int, list
 def texture_pass(kept: list[tuple], subdiv: int, tex_options: dict) -> tuple[int, list[Mesh]]:
     """(texture unit bytes, the reconstructions with UVs and decoded images)."""
     tex = texture.TextureEncoder(subdiv, tex_options, keep_images=True)
-    units = [tex.add(*k) for k in kept] + [tex.finish()]
-    nbytes = sum(len(_core.texture_unit(u[1])) for u in units if u)
+    for k in kept:
+        tex.add(*k)
+    nbytes = sum(len(_core.texture_unit(unit)) for _, unit in tex.finish())
     out = [Mesh(r.positions, r.faces, uvs=uv, uv_faces=uvf, image=img)
            for (_, _, r, _, _), (uv, uvf), img in zip(kept, tex.uvs, tex.images)]
     return nbytes, out

@@ -61,8 +61,7 @@ def configure(variant: str, size: int, originals: dict) -> int:
         return options
 
     atlas._charting = charting
-    preset = next((int(t[1:]) for t in tokens if t[0] == "p" and t[1:].isdigit()), None)
-    video.encode_video = lambda im, c="hevc", q=32, preset_=None: originals["video"](im, c, q, preset=preset if preset is not None else preset_)
+    video.AV1_PRESET = next((int(t[1:]) for t in tokens if t[0] == "p" and t[1:].isdigit()), originals["preset"])
     return next((int(t[1:]) for t in tokens if t[0] == "s" and t[1:].isdigit()), size)
 
 
@@ -74,7 +73,7 @@ def main() -> int:
     size = texture.atlas_size_for(*coder._texture_shape(frames[0]))
     geometry_bytes, kept = hull.geometry_pass(frames, gqp, {})
     originals = {"transfer": _core.transfer_texture, "pack": atlas._packing, "chart": atlas._charting,
-                 "video": video.encode_video}
+                 "preset": video.AV1_PRESET}
     results = {}
     for variant in variants:
         side = configure(variant, size, originals)

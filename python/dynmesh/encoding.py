@@ -34,21 +34,16 @@ class EncodeResult:
     texture_options: dict | None = None
 
 
-def _place_texture_unit(parts: list[list[bytes]], closed: tuple[int, bytes] | None) -> None:
-    """Puts a closed texture group's unit right after its first frame's unit (``parts[i]``
-    is the ``i``-th frame coded by the texture encoder and what follows it)."""
-    if closed:
-        parts[closed[0]].append(_core.texture_unit(closed[1]))
-
-
 def _image_of(m: Mesh) -> np.ndarray:
     return m.image if m.image is not None else read_image(m.texture)
 
 
-def texture_encoder(opts: dict, texture_options: dict, keep: bool) -> _texture.TextureEncoder:
-    """The texture stage of a stream coded with the geometry options ``opts``: it estimates
-    texture costs for the frame decisions unless every frame is intra (no decision)."""
-    return _texture.TextureEncoder(opts["subdiv"], texture_options, keep, estimate_costs=opts["intra_period"] > 1)
+def texture_encoder(opts: dict, texture_options: dict, keep: bool, first_frame: int = 0) -> _texture.TextureEncoder:
+    """The texture stage of a stream coded with the geometry options ``opts``, from frame
+    ``first_frame`` on: it estimates texture costs for the frame decisions unless every frame
+    is intra (no decision)."""
+    return _texture.TextureEncoder(opts["subdiv"], texture_options, keep, estimate_costs=opts["intra_period"] > 1,
+                                   first_frame=first_frame)
 
 
 def _peek(meshes: Iterable[Mesh]) -> tuple[Mesh, Iterable[Mesh]]:
@@ -89,33 +84,47 @@ def encode_units(enc: _core.Encoder, tex: _texture.TextureEncoder | None, meshes
                  count: int, keep_reconstructions: bool, on_frame: Callable[[int, dict], None] | None) -> EncodeResult:
     """Codes ``meshes`` as frames ``first``, ``first + 1``, ... (below ``count``) of the
     stream with ``enc`` and ``tex``, which start there: the result's ``data`` is their
-    units, texture units placed, without the sequence header."""
-    parts: list[list[bytes]] = []
+    units, texture units placed, without the sequence header. A frame's texture is coded
+    while the next frame's geometry is (``TextureEncoder``)."""
+    units: list[bytes] = []
     result = EncodeResult(b"")
-    for i, m in enumerate(meshes, first):
-        if i >= count:
-            raise ValueError(f"more than the {count} frames announced")
-        try:
+    try:
+        for i, m in enumerate(meshes, first):
+            if i >= count:
+                raise ValueError(f"more than the {count} frames announced")
             if tex:
                 enc.set_texture_cost(tex.cost())
-            unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
-            stats["type"] = FrameType(stats["type"])
-            closed = tex and tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, _image_of(m))
-            if tex:
-                stats["texture_coverage"] = tex.coverage[-1]
-        except ValueError as e:
-            raise ValueError(f"frame {i}: {e}") from None
-        _place_texture_unit(parts, closed)
-        parts.append([unit])
-        result.frames.append(stats)
+            try:
+                unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
+                stats["type"] = FrameType(stats["type"])
+                image = _image_of(m) if tex else None
+            except ValueError as e:
+                raise ValueError(f"frame {i}: {e}") from None
+            if tex:  # its errors name their frame
+                tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
+            units.append(unit)
+            result.frames.append(stats)
+            if keep_reconstructions:
+                result.reconstructions.append(Mesh(pos, faces))
+            if on_frame is not None:
+                on_frame(i, stats)
+        texture_units = tex.finish() if tex else []
+    finally:
+        if tex:
+            tex.close()
+    result.data, result.texture_bytes = _with_texture_units(units, texture_units)
+    if tex:
+        for stats, covered in zip(result.frames, tex.coverage):
+            stats["texture_coverage"] = covered
         if keep_reconstructions:
-            result.reconstructions.append(Mesh(pos, faces))
-        if on_frame is not None:
-            on_frame(i, stats)
-    _place_texture_unit(parts, tex and tex.finish())
-    if tex is not None and keep_reconstructions:
-        for r, (uv, uv_faces), image in zip(result.reconstructions, tex.uvs, tex.images):
-            r.uvs, r.uv_faces, r.image = uv, uv_faces, image
-    result.texture_bytes = sum(len(u) for p in parts for u in p[1:])
-    result.data = b"".join(u for p in parts for u in p)
+            for r, (uv, uv_faces), image in zip(result.reconstructions, tex.uvs, tex.images):
+                r.uvs, r.uv_faces, r.image = uv, uv_faces, image
     return result
+
+
+def _with_texture_units(units: list[bytes], texture_units: list[tuple[int, bytes]]) -> tuple[bytes, int]:
+    """The frame units with each texture group's unit right after its first frame's unit,
+    and the texture units' bytes."""
+    after = {k: _core.texture_unit(payload) for k, payload in texture_units}
+    data = b"".join(u + after.get(k, b"") for k, u in enumerate(units))
+    return data, sum(len(u) for u in after.values())

@@ -79,7 +79,7 @@ def encode_group(job: GroupJob) -> encoding.EncodeResult | None:
     count, lo, hi = job.sequence
     enc = encoding._encoder(count, lo, hi, job.options)
     enc.start_group(job.first)
-    tex = None if job.texture is None else encoding.texture_encoder(job.options, job.texture, job.keep)
+    tex = None if job.texture is None else encoding.texture_encoder(job.options, job.texture, job.keep, job.first)
     try:
         return encoding.encode_units(enc, tex, _frames_here(job), job.first, count, job.keep, None)
     except _Unreachable:

@@ -14,6 +14,7 @@ texture unit payload).
 from __future__ import annotations
 
 import bisect
+from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -106,8 +107,8 @@ class _Group:
     atlas: bytes
     uv: np.ndarray
     uv_faces: np.ndarray
-    base_faces: np.ndarray
-    images: list = field(default_factory=list)
+    video: video.VideoEncoder
+    estimated: list = field(default_factory=list)  # its first images, while costs are estimated
     intra_bytes: int | None = None  # its first frame coded alone
     predicted_bytes: int | None = None  # what its second frame adds to the first
 
@@ -126,11 +127,16 @@ PREDICTED_SHARE = {"av1": 0.05, "hevc": 0.2}
 class TextureEncoder:
     """Builds the texture units of a stream frame by frame (see the module documentation).
 
-    Call ``add`` after each geometry frame; it returns ``(frame index, texture unit)`` for a
-    group that the frame closed, and ``finish`` the last one. ``keep_images`` keeps the
-    decoded texture of every frame (``images``), which costs decoding each video once."""
+    Call ``add`` after each geometry frame and ``finish`` after the last: it gives every
+    group's ``(first frame, texture unit)``. ``add`` only queues the frame: its texture is
+    transferred and coded on a thread of its own while the caller codes the next frame's
+    geometry (the core and the video codec work without the GIL), and ``cost`` waits for it
+    when the next decision needs what it measures. ``keep_images`` keeps the decoded texture
+    of every frame (``images``), which costs decoding each video once. ``first_frame``, the
+    stream index of the first frame added, names frames in error messages."""
 
-    def __init__(self, subdiv: int, options: dict, keep_images: bool = False, estimate_costs: bool = False):
+    def __init__(self, subdiv: int, options: dict, keep_images: bool = False, estimate_costs: bool = False,
+                 first_frame: int = 0):
         opts = check_options(options)
         if opts["texture_size"] is None or opts["texture_qp"] is None:
             raise ValueError("TextureEncoder needs a texture_size and texture_qp (resolve_options chooses them)")
@@ -142,9 +148,19 @@ class TextureEncoder:
         #: Per frame, the share of the atlas's texels that the frame's surface covers (the
         #: rest is padding, which the video codes at little cost).
         self.coverage: list[float] = []
-        self._group: _Group | None = None
-        self._frame = 0
         self._estimate = estimate_costs
+        self._first_frame = first_frame
+        self._units: list[tuple[int, bytes]] = []
+        # What the caller's thread knows of the groups: the base connectivity of the current
+        # one and how many frames it has, so that it decides group starts without waiting.
+        self._faces: np.ndarray | None = None
+        self._length = 0
+        self._frames = 0
+        self._settled_cost: tuple[float, float] | None = None
+        # Only the worker thread touches these.
+        self._group: _Group | None = None
+        self._worker = ThreadPoolExecutor(1, thread_name_prefix="dynmesh-texture")
+        self._queued: list[Future] = []
 
     def cost(self) -> tuple[float, float] | None:
         """(bytes, bytes): what the texture of the next frame adds when the frame continues
@@ -152,52 +168,99 @@ class TextureEncoder:
         frame), for the geometry encoder's decisions (``Encoder.set_texture_cost``); None
         before a group has begun or without ``estimate_costs``. Measured on the group's
         own first two frames, each group apart, so a parallel encode decides as a
-        sequential one does."""
-        g = self._group
-        if g is None or g.intra_bytes is None:
+        sequential one does. Waits for the queued frames until both are measured."""
+        if not self._estimate or self._length == 0:
             return None
-        continued = g.predicted_bytes if g.predicted_bytes is not None else PREDICTED_SHARE[self.codec] * g.intra_bytes
-        return float(continued), float(g.intra_bytes + len(g.atlas))
-
-    def add(self, frame_type: FrameType, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> tuple[int, bytes] | None:
-        closed = None
+        if self._settled_cost is not None:
+            return self._settled_cost
+        self._wait()
         g = self._group
+        continued = g.predicted_bytes if g.predicted_bytes is not None else PREDICTED_SHARE[self.codec] * g.intra_bytes
+        cost = float(continued), float(g.intra_bytes + len(g.atlas))
+        if g.predicted_bytes is not None:
+            self._settled_cost = cost
+        return cost
+
+    def add(self, frame_type: FrameType, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> None:
+        """Queues a coded frame's texture: ``base`` its decoded base mesh, ``reconstruction``
+        the surface the decoder shows, ``source`` and ``image`` the input frame and texture."""
+        self._raise_failure()
         # A group's atlas fits one base connectivity: an intra frame, and a predicted frame
         # whose base is not its group's (refreshed faces, or a reference from before the
         # group), start a new one.
-        if frame_type == FrameType.INTRA or g is None or not np.array_equal(base.faces, g.base_faces):
-            closed = self._close()
-            data, uv_faces, uv = atlas.coded_atlas(base.positions, base.faces, self.size)
-            uv, uv_faces = _core.subdivide_uv(uv, uv_faces, self.subdiv)
-            self._group = _Group(self._frame, data, uv, uv_faces, base.faces)
-        g = self._group
-        texture, covered = _core.transfer_texture(
-            reconstruction.positions, reconstruction.faces, g.uv, g.uv_faces,
-            source.positions, source.faces, source.uvs, source.uv_faces, image, self.size, self.size)
-        g.images.append(texture)
-        self.coverage.append(float(covered))
-        if self._estimate and len(g.images) <= 2:
-            coded = len(video.encode_video(g.images, self.codec, self.qp, preset=ESTIMATE_PRESET.get(self.codec)))
-            if len(g.images) == 1:
-                g.intra_bytes = coded
-            else:
-                g.predicted_bytes = max(0, coded - g.intra_bytes)
-        self.uvs.append((g.uv, g.uv_faces))
-        self._frame += 1
-        return closed
+        starts = frame_type == FrameType.INTRA or self._faces is None or not np.array_equal(base.faces, self._faces)
+        if starts:
+            self._faces, self._length, self._settled_cost = base.faces, 0, None
+        self._length += 1
+        self._queued.append(self._worker.submit(self._add, self._frames, starts, base, reconstruction, source, image))
+        self._frames += 1
 
-    def finish(self) -> tuple[int, bytes] | None:
-        return self._close()
+    def finish(self) -> list[tuple[int, bytes]]:
+        """Every group's ``(index of its first frame among those added, texture unit)``, in
+        order, once the queued frames are coded; ``uvs``, ``coverage`` and ``images`` then
+        hold every frame's."""
+        try:
+            self._wait()
+            self._queued.append(self._worker.submit(self._close))
+            self._wait()
+            return self._units
+        finally:
+            self.close()
 
-    def _close(self) -> tuple[int, bytes] | None:
+    def close(self) -> None:
+        """Drops the frames still queued and stops the worker thread (``finish`` does it)."""
+        for f in self._queued:
+            f.cancel()
+        self._worker.shutdown(wait=True)
+
+    def _wait(self) -> None:
+        queued, self._queued = self._queued, []
+        for f in queued:
+            f.result()
+
+    def _raise_failure(self) -> None:
+        """Raises a queued frame's error as soon as it is known, rather than at the next wait."""
+        if any(f.done() and f.exception() is not None for f in self._queued):
+            self._wait()
+
+    def _add(self, index: int, starts: bool, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> None:
+        try:
+            if starts:
+                self._close()
+                data, uv_faces, uv = atlas.coded_atlas(base.positions, base.faces, self.size)
+                uv, uv_faces = _core.subdivide_uv(uv, uv_faces, self.subdiv)
+                self._group = _Group(index, data, uv, uv_faces, video.VideoEncoder(self.codec, self.qp))
+            g = self._group
+            texture, covered = _core.transfer_texture(
+                reconstruction.positions, reconstruction.faces, g.uv, g.uv_faces,
+                source.positions, source.faces, source.uvs, source.uv_faces, image, self.size, self.size)
+            g.video.add(texture)
+            self.coverage.append(float(covered))
+            self.uvs.append((g.uv, g.uv_faces))
+            if self._estimate and g.predicted_bytes is None:
+                self._measure(g, texture)
+        except ValueError as e:
+            raise ValueError(f"frame {self._first_frame + index}: {e}") from None
+
+    def _measure(self, g: _Group, texture: np.ndarray) -> None:
+        """The group's intra and predicted video bytes, from its first two images."""
+        g.estimated.append(texture)
+        coded = len(video.encode_video(g.estimated, self.codec, self.qp, preset=ESTIMATE_PRESET.get(self.codec)))
+        if g.intra_bytes is None:
+            g.intra_bytes = coded
+        else:
+            g.predicted_bytes = max(0, coded - g.intra_bytes)
+            g.estimated = []
+
+    def _close(self) -> None:
         g, self._group = self._group, None
         if g is None:
-            return None
-        data = video.encode_video(g.images, self.codec, self.qp)
+            return
+        data = g.video.finish()
         if self.keep_images:
             self.images.extend(video.decode_video(data, self.codec))
-        header = GroupHeader(self.codec, self.size, self.size, atlas.UV_BITS, len(g.images), g.atlas, data)
-        return g.first, pack_group(header)
+        header = GroupHeader(self.codec, self.size, self.size, atlas.UV_BITS, g.video.frames, g.atlas, data)
+        self._units.append((g.first, pack_group(header)))
 
 
 @dataclass

@@ -73,8 +73,8 @@ HEVC_PRESET = "ultrafast"
 #: of a textured stream's bytes, its video a small part of the encode time.
 AV1_PRESET = 4
 
-#: SVT-AV1 parameters besides the preset, the quantizer and ``keyint`` (which is set to the
-#: group's length + 1, so that the first picture is the only key frame): low delay
+#: SVT-AV1 parameters besides the preset, the quantizer and ``keyint`` (``AV1_ONE_KEY_FRAME``:
+#: the first picture is the only key frame): low delay
 #: (``pred-struct=1``: no reordering, so the player's WebCodecs decoder gives picture k for IVF
 #: frame k), two hierarchical levels (4-picture mini-GOPs with the upper layers' QP offsets:
 #: 2.5-5.5 % fewer bytes than the three of preset 8), no scene-change detection, constant QP
@@ -116,39 +116,77 @@ def _container(codec: str) -> str:
     return {"hevc": "hevc", "av1": "ivf"}[codec]
 
 
-def _options(codec: str, qp: float, frames: int, preset) -> dict:
+def _options(codec: str, qp: float, preset) -> dict:
     """The FFmpeg encoder options for one group's video."""
     if codec == "hevc":
         return {"preset": str(preset or HEVC_PRESET), "x265-params": f"qp={qp}:bframes=0:info=0:log-level=error"}
-    params = {**AV1_PARAMS, "keyint": frames + 1, "crf": f"{av1_crf(qp):g}"}
+    params = {**AV1_PARAMS, "keyint": AV1_ONE_KEY_FRAME, "crf": f"{av1_crf(qp):g}"}
     return {"preset": str(AV1_PRESET if preset is None else preset),
             "svtav1-params": ":".join(f"{k}={v}" for k, v in params.items())}
 
 
-def encode_video(images: list[np.ndarray], codec: str = "hevc", qp: int = 32, *, preset=None) -> bytes:
-    """Codes equally sized (H, W, 3) uint8 images (H, W even) as one video; returns its bytes
-    (an HEVC Annex B elementary stream, or AV1 in IVF). ``qp`` is in HEVC's QP scale for both
-    codecs (``av1_crf``); ``preset`` overrides ``HEVC_PRESET`` or ``AV1_PRESET``."""
-    if codec not in CODECS:
-        raise ValueError(f"unknown texture codec {codec!r} (expected {' or '.join(CODECS)})")
-    import av  # here, not at module level: PyAV takes a third of a second to import
+#: SVT-AV1's ``keyint`` for "no key frame after the first": the encoder codes a group's
+#: pictures as they come, before it knows how many there will be. (Checked against
+#: ``keyint`` = the group's length + 1, what it knew before: the same bytes.)
+AV1_ONE_KEY_FRAME = -1
 
-    h, w = images[0].shape[:2]
-    buf = io.BytesIO()
-    with av.open(buf, "w", format=_container(codec)) as out:
-        stream = out.add_stream({"hevc": "libx265", "av1": "libsvtav1"}[codec], rate=30)
+
+class VideoEncoder:
+    """Codes equally sized (H, W, 3) uint8 images (H, W even), given one at a time, as one
+    video; ``finish`` returns its bytes (an HEVC Annex B elementary stream, or AV1 in IVF).
+
+    The codec works in its own threads while the caller goes on: each ``add`` hands it a
+    picture and takes whatever packets are ready, so a group's video is mostly coded by the
+    time its last picture arrives. ``qp`` is in HEVC's QP scale for both codecs
+    (``av1_crf``); ``preset`` overrides ``HEVC_PRESET`` or ``AV1_PRESET``."""
+
+    def __init__(self, codec: str = "hevc", qp: int = 32, *, preset=None):
+        if codec not in CODECS:
+            raise ValueError(f"unknown texture codec {codec!r} (expected {' or '.join(CODECS)})")
+        self.codec, self.qp, self.preset = codec, qp, preset
+        self.frames = 0
+        self._buf = io.BytesIO()
+        self._out = self._stream = None
+
+    def add(self, image: np.ndarray) -> None:
+        if self._stream is None:
+            self._open(*image.shape[:2])
+        import av
+
+        frame = av.VideoFrame.from_ndarray(_core.rgb_to_yuv420(image), format="yuv420p10le")
+        frame.pts = self.frames
+        self.frames += 1
+        for packet in self._stream.encode(frame):
+            self._out.mux(packet)
+
+    def finish(self) -> bytes:
+        """The video's bytes; the encoder takes no more images."""
+        if self._stream is None:
+            raise ValueError("a video needs at least one image")
+        for packet in self._stream.encode():
+            self._out.mux(packet)
+        self._out.close()
+        self._stream = None
+        return self._buf.getvalue()
+
+    def _open(self, h: int, w: int) -> None:
+        import av  # here, not at module level: PyAV takes a third of a second to import
+
+        self._out = av.open(self._buf, "w", format=_container(self.codec))
+        stream = self._out.add_stream({"hevc": "libx265", "av1": "libsvtav1"}[self.codec], rate=30)
         stream.width, stream.height, stream.pix_fmt = w, h, "yuv420p10le"
-        if codec == "av1":
+        if self.codec == "av1":
             os.environ.setdefault("SVT_LOG", "1")  # errors only; its banner goes to stderr otherwise
-        stream.options = _options(codec, qp, len(images), preset)
-        for k, image in enumerate(images):
-            frame = av.VideoFrame.from_ndarray(_core.rgb_to_yuv420(image), format="yuv420p10le")
-            frame.pts = k
-            for packet in stream.encode(frame):
-                out.mux(packet)
-        for packet in stream.encode():
-            out.mux(packet)
-    return buf.getvalue()
+        stream.options = _options(self.codec, self.qp, self.preset)
+        self._stream = stream
+
+
+def encode_video(images: list[np.ndarray], codec: str = "hevc", qp: int = 32, *, preset=None) -> bytes:
+    """``images`` coded as one video by a ``VideoEncoder``: its bytes."""
+    enc = VideoEncoder(codec, qp, preset=preset)
+    for image in images:
+        enc.add(image)
+    return enc.finish()
 
 
 def decode_video(data: bytes, codec: str = "hevc"):
