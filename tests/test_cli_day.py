@@ -254,7 +254,7 @@ def test_no_rust_message_shows_range_syntax():
     literal = re.compile(r'"(?:[^"\\]|\\.)*\.\.=(?:[^"\\]|\\.)*"')
     debug_range = re.compile(r'\{:\?\}.*_RANGE\b')
     found = []
-    for folder in ("core/src", "bindings/src"):
+    for folder in ("core/src", "meshio/src", "bindings/src"):
         for path in sorted((ROOT / folder).rglob("*.rs")):
             for n, line in enumerate(path.read_text().splitlines(), 1):
                 if literal.search(line) or debug_range.search(line):
