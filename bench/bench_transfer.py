@@ -64,8 +64,7 @@ def transfer_inputs(sequence: str, frames: int) -> list[tuple]:
     tex = _texture.TextureEncoder(opts["subdiv"], texture_options, False, estimate_costs=opts["intra_period"] > 1)
     coded = []
     for m in meshes:
-        enc.set_texture_cost(tex.cost())
-        _, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
+        _, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces, tex.cost)
         image = m.image if m.image is not None else read_image(m.texture)
         tex.add(FrameType(stats["type"]), Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
         coded.append((pos, faces, m, image))

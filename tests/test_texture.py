@@ -297,8 +297,7 @@ def _frame_types(frames, cost) -> str:
     enc = _core.Encoder(len(frames), lo.tolist(), hi.tolist(), dict(api.DEFAULTS))
     types = []
     for m in frames:
-        enc.set_texture_cost(cost)
-        types.append(enc.encode_frame(m.positions, m.faces)[1]["type"])
+        types.append(enc.encode_frame(m.positions, m.faces, cost)[1]["type"])
     return "".join(types)
 
 
@@ -311,9 +310,18 @@ def test_frame_decisions_weigh_what_a_texture_restart_costs():
     # make every frame that can be predicted a predicted one.
     textured = _frame_types(frames, (100.0, 1e7))
     assert textured.count("P") > geometry.count("P") and textured[0] == "I", (geometry, textured)
-    for bad in ((-1.0, 5.0), (float("nan"), 1.0)):
+    # A callable is asked during the frame's coding; what it raises comes through.
+    assert _frame_types(frames, lambda: (100.0, 1e7)) == textured
+    m, (lo, hi) = frames[0], api.sequence_bounds(frames)
+    for bad in ((-1.0, 5.0), (float("nan"), 1.0), lambda: (-1.0, 5.0)):
         with pytest.raises(ValueError, match="texture costs"):
-            _core.Encoder(2, [0, 0, 0], [1, 1, 1], dict(api.DEFAULTS)).set_texture_cost(bad)
+            _core.Encoder(2, lo.tolist(), hi.tolist(), dict(api.DEFAULTS)).encode_frame(m.positions, m.faces, bad)
+
+    def failing():
+        raise KeyError("the texture stage failed")
+
+    with pytest.raises(KeyError, match="texture stage failed"):
+        _core.Encoder(2, lo.tolist(), hi.tolist(), dict(api.DEFAULTS)).encode_frame(m.positions, m.faces, failing)
 
 
 def test_textured_streams_decide_with_texture_and_still_decode_bit_for_bit():

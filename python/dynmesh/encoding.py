@@ -85,17 +85,16 @@ def encode_units(enc: _core.Encoder, tex: _texture.TextureEncoder | None, meshes
     """Codes ``meshes`` as frames ``first``, ``first + 1``, ... (below ``count``) of the
     stream with ``enc`` and ``tex``, which start there: the result's ``data`` is their
     units, texture units placed, without the sequence header. A frame's texture is coded
-    while the next frame's geometry is (``TextureEncoder``)."""
+    while the next frame's geometry is (``TextureEncoder``): the geometry encoder asks for
+    the texture cost only once the frame's predicted candidate is built."""
     units: list[bytes] = []
     result = EncodeResult(b"")
     try:
         for i, m in enumerate(meshes, first):
             if i >= count:
                 raise ValueError(f"more than the {count} frames announced")
-            if tex:
-                enc.set_texture_cost(tex.cost())
             try:
-                unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
+                unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces, tex and tex.cost)
                 stats["type"] = FrameType(stats["type"])
                 image = _image_of(m) if tex else None
             except ValueError as e:

@@ -158,7 +158,7 @@ pub struct SequenceEncoder {
 /// and a video frame predicted from the previous one); an intra frame, and a predicted one
 /// whose base changed (refreshed, or moved from an older reference), starts a new group
 /// (a new atlas, an intra video frame). The texture stage measures both as it goes
-/// ([`SequenceEncoder::set_texture_cost`]) so that the decision weighs them with the
+/// ([`SequenceEncoder::encode_textured`]) so that the decision weighs them with the
 /// geometry's bytes: texture is most of a textured stream.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TextureCost {
@@ -181,12 +181,6 @@ impl SequenceEncoder {
             return Err(InputError("bounding box must be finite".into()));
         }
         Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, references: Vec::new(), last_intra: None, texture_cost: None })
-    }
-
-    /// Makes the decisions of the following frames weigh their texture's bytes too (None:
-    /// geometry alone, as for an untextured stream).
-    pub fn set_texture_cost(&mut self, cost: Option<TextureCost>) {
-        self.texture_cost = cost;
     }
 
     pub fn header(&self) -> &SequenceHeader {
@@ -217,8 +211,17 @@ impl SequenceEncoder {
         Ok(())
     }
 
-    /// Encodes the next frame (in the input's units, inside the header's box).
+    /// Encodes the next frame (in the input's units, inside the header's box), deciding on
+    /// its geometry alone.
     pub fn encode(&mut self, mesh: &Mesh) -> Result<EncodedFrame, InputError> {
+        self.encode_textured(mesh, || None)
+    }
+
+    /// Encodes the next frame of a textured stream, its decision weighing what its texture
+    /// costs: `texture_cost` gives that ([`TextureCost`]; None: geometry alone). It is asked
+    /// once the predicted candidate is built, most of a frame's work, so that a texture stage
+    /// can meanwhile finish the previous frame's texture, which the cost may depend on.
+    pub fn encode_textured(&mut self, mesh: &Mesh, texture_cost: impl FnOnce() -> Option<TextureCost>) -> Result<EncodedFrame, InputError> {
         let start = Instant::now();
         mesh.validate()?;
         limits::check_size(mesh)?;
@@ -236,6 +239,7 @@ impl SequenceEncoder {
         let target = Bvh::new(&input.positions, &input.faces);
         let same_topology = self.references.last().is_some_and(|s| tracking::same_connectivity(&s.reference.input, &input));
         let (predicted, anchor_seconds) = self.best_predicted(&input, &target)?;
+        self.texture_cost = texture_cost();
         let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
         let unit = bitstream::write_unit(chosen.candidate.head.frame_type, &chosen.candidate.payload);
         let c = chosen.candidate;

@@ -165,7 +165,7 @@ class TextureEncoder:
     def cost(self) -> tuple[float, float] | None:
         """(bytes, bytes): what the texture of the next frame adds when the frame continues
         the current group, and when it starts a new one (an atlas and an intra video
-        frame), for the geometry encoder's decisions (``Encoder.set_texture_cost``); None
+        frame), for the geometry encoder's decisions (``Encoder.encode_frame``); None
         before a group has begun or without ``estimate_costs``. Measured on the group's
         own first two frames, each group apart, so a parallel encode decides as a
         sequential one does. Waits for the queued frames until both are measured."""
