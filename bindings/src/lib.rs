@@ -150,35 +150,44 @@ impl Encoder {
         self.inner.start_group(index).map_err(|e| PyValueError::new_err(e.0))
     }
 
-    /// Makes the decisions of the following frames weigh the bytes their texture adds:
-    /// `continued` for a frame that keeps its texture group's atlas, `restarted` for one
-    /// that starts a group (None: geometry alone).
-    fn set_texture_cost(&mut self, cost: Option<(f64, f64)>) -> PyResult<()> {
-        if cost.is_some_and(|(c, r)| !(c.is_finite() && r.is_finite() && c >= 0.0 && r >= 0.0)) {
-            return Err(PyValueError::new_err("texture costs must be finite numbers of bytes, at least 0"));
-        }
-        self.inner.set_texture_cost(cost.map(|(continued, restarted)| TextureCost { continued, restarted }));
-        Ok(())
-    }
-
     /// The serialized sequence header.
     fn header_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
         PyBytes::new(py, &dynmesh::stream::bitstream::write_header(self.inner.header()))
     }
 
     /// Encodes the next frame; returns (unit bytes, stats dict, (positions, faces) of the
-    /// reconstruction, (positions, faces) of the decoded base mesh).
+    /// reconstruction, (positions, faces) of the decoded base mesh). `texture_cost` makes the
+    /// decision weigh the bytes the frame's texture adds: `(continued, restarted)`, for a
+    /// frame that keeps its texture group's atlas and for one that starts a group, or a
+    /// callable that returns them (or None), called once the predicted candidate is built
+    /// (`SequenceEncoder::encode_textured`); None: geometry alone.
+    #[pyo3(signature = (positions, faces, texture_cost=None))]
     #[allow(clippy::type_complexity)]
     fn encode_frame<'py>(
         &mut self,
         py: Python<'py>,
         positions: PyReadonlyArray2<'py, f64>,
         faces: PyReadonlyArray2<'py, i64>,
+        texture_cost: Option<Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyDict>, MeshArrays<'py>, MeshArrays<'py>)> {
         let mesh = mesh_of(&positions, &faces)?;
         let frame = self.inner.next_frame();
         let inner = &mut self.inner;
-        let out = py.allow_threads(|| inner.encode(&mesh)).map_err(|e| PyValueError::new_err(e.0))?;
+        let texture_cost = texture_cost.map(Bound::unbind);
+        let mut failed = None;
+        let out = py.allow_threads(|| {
+            inner.encode_textured(&mesh, || {
+                let cost = Python::with_gil(|py| texture_cost_of(texture_cost.as_ref().map(|c| c.bind(py))));
+                cost.unwrap_or_else(|e| {
+                    failed = Some(e);
+                    None
+                })
+            })
+        });
+        if let Some(e) = failed {
+            return Err(e);
+        }
+        let out = out.map_err(|e| PyValueError::new_err(e.0))?;
         let dropped = out.stats.dropped_faces;
         if dropped > 0 && dropped >= mesh.faces.len() / DROPPED_SHARE_WARNED {
             let message = format!(
@@ -191,6 +200,18 @@ impl Encoder {
         let unit = PyBytes::new(py, &out.unit);
         Ok((unit, stats_dict(py, &out.stats)?, arrays_of(py, out.reconstruction), arrays_of(py, out.base)))
     }
+}
+
+/// The texture cost that `cost` stands for: None, `(continued, restarted)`, or a callable
+/// that returns either.
+fn texture_cost_of(cost: Option<&Bound<'_, PyAny>>) -> PyResult<Option<TextureCost>> {
+    let Some(cost) = cost else { return Ok(None) };
+    let value = if cost.is_callable() { cost.call0()? } else { cost.clone() };
+    let Some((continued, restarted)) = value.extract::<Option<(f64, f64)>>()? else { return Ok(None) };
+    if !(continued.is_finite() && restarted.is_finite() && continued >= 0.0 && restarted >= 0.0) {
+        return Err(PyValueError::new_err("texture costs must be finite numbers of bytes, at least 0"));
+    }
+    Ok(Some(TextureCost { continued, restarted }))
 }
 
 /// The core decoder of `data` (see [`Decoder::new`]), decoding `lod` iterations if given.
