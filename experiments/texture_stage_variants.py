@@ -11,7 +11,8 @@ the first, at total rate and at texture rate. Variants, joined with ``+``:
 - ``pN``: SVT-AV1 preset N;
 - ``sN``: an atlas of side N;
 - ``mcN``, ``itN``: xatlas charting with ``max_cost`` N (default 2: larger charts above) or
-  ``max_iterations`` N (default 1).
+  ``max_iterations`` N (default 1);
+- ``svt:KEY=VALUE``: an SVT-AV1 parameter besides ``video.AV1_PARAMS`` (``svt:enable-qm=1``).
 
     python experiments/texture_stage_variants.py liam_textured 28 default,ss,fullpack,p4 [26,30,34,38,42]
 """
@@ -62,6 +63,7 @@ def configure(variant: str, size: int, originals: dict) -> int:
 
     atlas._charting = charting
     video.AV1_PRESET = next((int(t[1:]) for t in tokens if t[0] == "p" and t[1:].isdigit()), originals["preset"])
+    video.AV1_PARAMS = {**originals["params"], **dict(t[4:].split("=", 1) for t in tokens if t.startswith("svt:"))}
     return next((int(t[1:]) for t in tokens if t[0] == "s" and t[1:].isdigit()), size)
 
 
@@ -73,7 +75,7 @@ def main() -> int:
     size = texture.atlas_size_for(*coder._texture_shape(frames[0]))
     geometry_bytes, kept = hull.geometry_pass(frames, gqp, {})
     originals = {"transfer": _core.transfer_texture, "pack": atlas._packing, "chart": atlas._charting,
-                 "preset": video.AV1_PRESET}
+                 "preset": video.AV1_PRESET, "params": video.AV1_PARAMS}
     results = {}
     for variant in variants:
         side = configure(variant, size, originals)

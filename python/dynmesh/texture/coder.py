@@ -5,7 +5,8 @@ intra frame gets an atlas made on its decoded base mesh (``atlas``); every frame
 group has that base mesh's connectivity (predicted frames move it), so all of them share
 the atlas, subdivided with the mesh (``_core.subdivide_uv``). Each frame's input texture is
 transferred onto the reconstructed mesh in that atlas (``_core.transfer_texture``, padded),
-and the group's images become one video (``video``). The stream carries all of it in one
+and the group's images become one video (``video.VideoEncoder``, picture by picture). All
+of it runs on a thread beside the geometry encoder, one frame behind it. The stream carries all of it in one
 texture unit after the group's intra frame, whose fields the core writes and reads
 (``_core.pack_texture_payload``, ``_core.read_texture_payload``; ``docs/bitstream.md``,
 texture unit payload).
