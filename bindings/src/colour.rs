@@ -224,7 +224,7 @@ fn uv_mesh_of(
     Ok(UvMesh { mesh: Mesh::new(p, f), uv, uv_faces })
 }
 
-fn uv_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 2]>> {
+pub(crate) fn uv_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 2]>> {
     let v = a.as_array();
     if v.ncols() != 2 {
         return Err(PyValueError::new_err("uv must have shape (K, 2)"));
@@ -233,7 +233,7 @@ fn uv_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 2]>> {
 }
 
 /// UV index triangles: one row of 3 indices per face, into a list of `uv_count` UVs.
-fn uv_faces_of(
+pub(crate) fn uv_faces_of(
     a: &PyReadonlyArray2<i64>,
     face_count: usize,
     uv_count: usize,

@@ -14,6 +14,7 @@ use dynmesh::stream::bitstream::MAX_SUBDIV;
 use dynmesh::residual::subdivide;
 use dynmesh::texture::uvcoder::{self, MAX_UV_BITS};
 
+use crate::colour::{uv_faces_of, uv_of};
 use crate::{faces_of, positions_of};
 
 type Atlas<'py> = (Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<i64>>);
@@ -108,11 +109,7 @@ fn subdivide_uv<'py>(
     if iterations > MAX_SUBDIV {
         return Err(PyValueError::new_err(format!("at most {MAX_SUBDIV} subdivision iterations")));
     }
-    let a = uv.as_array();
-    if a.ncols() != 2 {
-        return Err(PyValueError::new_err("uv must have shape (K, 2)"));
-    }
-    let uv: Vec<[f64; 2]> = a.rows().into_iter().map(|r| [r[0], r[1]]).collect();
+    let uv = uv_of(&uv)?;
     let rows = uv_faces.as_array().nrows();
     let uv_faces = uv_faces_of(&uv_faces, rows, uv.len())?;
     let (suv, sfaces) = py.allow_threads(|| subdivide::subdivide_uv(&uv, &uv_faces, iterations));
@@ -127,25 +124,6 @@ fn check_bits(bits: u32) -> PyResult<()> {
     } else {
         Err(PyValueError::new_err(format!("bits must be from 1 to {MAX_UV_BITS}, not {bits}")))
     }
-}
-
-/// UV index triangles: `rows` rows of 3 indices into a list of `uv_count` UVs.
-fn uv_faces_of(a: &PyReadonlyArray2<i64>, rows: usize, uv_count: usize) -> PyResult<Vec<[u32; 3]>> {
-    let v = a.as_array();
-    if v.ncols() != 3 || v.nrows() != rows {
-        return Err(PyValueError::new_err(format!("uv_faces must have shape ({rows}, 3), one row per face")));
-    }
-    v.rows()
-        .into_iter()
-        .enumerate()
-        .map(|(i, r)| {
-            let f = [r[0], r[1], r[2]];
-            if f.iter().any(|&x| x < 0 || x as u64 >= uv_count as u64) {
-                return Err(PyValueError::new_err(format!("uv_faces row {i} refers to a UV that does not exist (there are {uv_count}, numbered from 0)")));
-            }
-            Ok(f.map(|x| x as u32))
-        })
-        .collect()
 }
 
 /// Integer UVs (K, 2), uint32 or int64, each in [0, 2^bits).
