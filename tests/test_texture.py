@@ -333,3 +333,17 @@ def test_textured_streams_decide_with_texture_and_still_decode_bit_for_bit():
     assert types(textured).count("P") >= types(geometry).count("P"), (types(geometry), types(textured))
     for r, d in zip(textured.reconstructions, api.decode(textured.data)):
         assert np.array_equal(r.positions, d.positions) and np.array_equal(r.image, d.image)
+
+
+def test_a_texture_that_fails_on_its_thread_names_its_frame_and_stops_the_thread(textured_sequence, capfd):
+    # The texture stage runs a frame behind the geometry on a thread of its own: a frame
+    # whose texture cannot be transferred still fails the encode, naming that frame.
+    frames = list(textured_sequence)
+    bad = frames[2]
+    frames[2] = Mesh(bad.positions, bad.faces, uvs=bad.uvs, uv_faces=bad.uv_faces[:-1], image=bad.image)
+    with pytest.raises(ValueError, match=r"^frame 2: .*uv_faces"):
+        api.encode_frames(frames, texture_size=SIZE)
+    import threading
+
+    assert not [t for t in threading.enumerate() if t.name.startswith("dynmesh-texture")]
+    assert capfd.readouterr().err == ""  # the video of the unfinished group was ended quietly

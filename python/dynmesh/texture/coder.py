@@ -110,6 +110,7 @@ class _Group:
     uv_faces: np.ndarray
     video: video.VideoEncoder
     estimated: list = field(default_factory=list)  # its first images, while costs are estimated
+    pending: np.ndarray | None = None  # the last frame's texture, on its way into the video
     intra_bytes: int | None = None  # its first frame coded alone
     predicted_bytes: int | None = None  # what its second frame adds to the first
 
@@ -162,6 +163,8 @@ class TextureEncoder:
         self._group: _Group | None = None
         self._worker = ThreadPoolExecutor(1, thread_name_prefix="dynmesh-texture")
         self._queued: list[Future] = []
+        self._measured: Future | None = None  # the last frame's transfer (and measure)
+        self._closed = False
 
     def cost(self) -> tuple[float, float] | None:
         """(bytes, bytes): what the texture of the next frame adds when the frame continues
@@ -174,7 +177,7 @@ class TextureEncoder:
             return None
         if self._settled_cost is not None:
             return self._settled_cost
-        self._wait()
+        self._wait(until=self._measured)
         g = self._group
         continued = g.predicted_bytes if g.predicted_bytes is not None else PREDICTED_SHARE[self.codec] * g.intra_bytes
         cost = float(continued), float(g.intra_bytes + len(g.atlas))
@@ -193,7 +196,8 @@ class TextureEncoder:
         if starts:
             self._faces, self._length, self._settled_cost = base.faces, 0, None
         self._length += 1
-        self._queued.append(self._worker.submit(self._add, self._frames, starts, base, reconstruction, source, image))
+        self._measured = self._worker.submit(self._add, self._frames, starts, base, reconstruction, source, image)
+        self._queued += [self._measured, self._worker.submit(self._to_video, self._frames)]
         self._frames += 1
 
     def finish(self) -> list[tuple[int, bytes]]:
@@ -209,15 +213,30 @@ class TextureEncoder:
             self.close()
 
     def close(self) -> None:
-        """Drops the frames still queued and stops the worker thread (``finish`` does it)."""
+        """Drops the frames still queued and stops the worker thread (``finish`` does it;
+        calling it again does nothing)."""
+        if self._closed:
+            return
+        self._closed = True
         for f in self._queued:
             f.cancel()
+        self._worker.submit(self._abandon)
         self._worker.shutdown(wait=True)
 
-    def _wait(self) -> None:
-        queued, self._queued = self._queued, []
-        for f in queued:
+    def _abandon(self) -> None:
+        """Ends the video of a group that will not be finished: SVT-AV1 complains on stderr
+        when an encoder is dropped without its end of stream."""
+        g, self._group = self._group, None
+        if g is not None:
+            g.video.finish()
+
+    def _wait(self, until: Future | None = None) -> None:
+        """Waits for the queued work (up to ``until``, in order) and raises its first error."""
+        while self._queued:
+            f = self._queued.pop(0)
             f.result()
+            if f is until:
+                return
 
     def _raise_failure(self) -> None:
         """Raises a queued frame's error as soon as it is known, rather than at the next wait."""
@@ -235,13 +254,25 @@ class TextureEncoder:
             texture, covered = _core.transfer_texture(
                 reconstruction.positions, reconstruction.faces, g.uv, g.uv_faces,
                 source.positions, source.faces, source.uvs, source.uv_faces, image, self.size, self.size)
-            g.video.add(texture)
             self.coverage.append(float(covered))
             self.uvs.append((g.uv, g.uv_faces))
+            # Measured before the group's video takes the picture: the next frame's decision
+            # waits for the measure, not for the video encoder's start-up (half a second).
             if self._estimate and g.predicted_bytes is None:
                 self._measure(g, texture)
+            g.pending = texture
         except ValueError as e:
             raise ValueError(f"frame {self._first_frame + index}: {e}") from None
+
+    def _to_video(self, index: int) -> None:
+        """The frame's texture into its group's video (a task of its own, which ``cost``
+        does not wait for)."""
+        g = self._group
+        try:
+            g.video.add(g.pending)
+        except ValueError as e:
+            raise ValueError(f"frame {self._first_frame + index}: {e}") from None
+        g.pending = None
 
     def _measure(self, g: _Group, texture: np.ndarray) -> None:
         """The group's intra and predicted video bytes, from its first two images."""
