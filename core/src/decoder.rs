@@ -24,6 +24,7 @@ use crate::stream::bitstream::{self, FrameType, SequenceHeader, Unit};
 use crate::stream::ec;
 use crate::stream::payload::Payload;
 use crate::stream::resync::{self, Damage, FrameSlot, TextureSlot};
+use crate::stream::syntax::UNIT_OVERHEAD;
 
 /// What `frame_info` tells about a frame without decoding it.
 #[derive(Debug, Clone, PartialEq)]
@@ -160,7 +161,7 @@ impl Decoder {
             frame_type: unit.frame_type,
             reference: (unit.frame_type == FrameType::Predicted).then(|| index - p.reference_distance),
             qp: p.qp,
-            bytes: unit.payload.len() + bitstream::UNIT_OVERHEAD,
+            bytes: unit.payload.len() + UNIT_OVERHEAD,
             base_bytes: p.base.len() + p.refresh.len(),
             refresh_bytes: p.refresh.len(),
             displacement_bytes: p.coefficients.len(),

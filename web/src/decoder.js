@@ -10,6 +10,7 @@
 // coefficients of finer levels are not read, and the frame is reconstructed without them.
 
 import { readHeader, readUnits, Reader, INTRA, PREDICTED } from './stream/bitstream.js';
+import { QP_MIN, QP_MAX, MODE_COEFFICIENT_DIFFERENCES, MODE_REFRESH, MODE_MAX, UNIT_OVERHEAD } from './stream/syntax.js';
 import { DecodeError } from './error.js';
 import { RangeDecoder } from './stream/ec.js';
 import { decodeBase } from './base/coder.js';
@@ -20,7 +21,6 @@ import { faceAllowance, subdividedBase, reconstruct } from './model.js';
 
 /** Decoded frames whose states are kept besides the latest intra frame's (`CACHED_STATES`). */
 export const CACHED_STATES = 8;
-const QP_MIN = -24, QP_MAX = 63;
 
 /**
  * @typedef {object} Frame
@@ -63,7 +63,7 @@ export class Decoder {
       type: u.type === INTRA ? 'I' : 'P',
       reference: u.type === PREDICTED ? index - p.referenceDistance : null,
       qp: p.qp,
-      bytes: u.length + 9,
+      bytes: u.length + UNIT_OVERHEAD,
       baseBytes: p.base.length + p.refresh.length,
       refreshBytes: p.refresh.length,
       displacementBytes: p.coefficients.length,
@@ -189,7 +189,8 @@ function addCoefficients(residual, reference) {
   return out;
 }
 
-/** Splits a frame payload into its fields (`stream::payload::Payload::read`). */
+/** Splits a frame payload into its fields (`stream::payload::Payload::read`; syntax.js
+ * INTRA_PAYLOAD, PREDICTED_PAYLOAD). */
 export function readPayload(data, unit, frame) {
   const r = new Reader(data, unit.offset, unit.offset + unit.length, frame);
   let referenceDistance = 0;
@@ -205,12 +206,11 @@ export function readPayload(data, unit, frame) {
   let coefficientsPredicted = false;
   let refresh = { bytes: new Uint8Array(0), offset: 0 };
   if (unit.type === PREDICTED) {
-    // bit 0: coefficient differences; bit 1: a refresh block follows.
     const m = r.u8('predicted frame mode');
-    if (m > 3) throw r.error(`unknown predicted frame mode ${m}`);
-    coefficientsPredicted = (m & 1) !== 0;
-    if (m & 2) refresh = r.block('refresh');
-    if ((m & 2) && refresh.bytes.length === 0) throw r.error('empty refresh block');
+    if (m > MODE_MAX) throw r.error(`unknown predicted frame mode ${m}`);
+    coefficientsPredicted = (m & MODE_COEFFICIENT_DIFFERENCES) !== 0;
+    if (m & MODE_REFRESH) refresh = r.block('refresh');
+    if ((m & MODE_REFRESH) && refresh.bytes.length === 0) throw r.error('empty refresh block');
   }
   const coef = r.block('displacements');
   if (r.remaining() !== 0) throw r.error('unexpected bytes at the end of the frame');

@@ -13,12 +13,14 @@ import { subdivide } from './residual/subdivide.js';
 import { lodScales, valences } from './residual/quantize.js';
 import { inverseLifting } from './residual/transform.js';
 import { vertexNormals, frameToWorld } from './residual/displace.js';
+import { FACE_ALLOWANCE_MAX, FACE_ALLOWANCE_PER_BYTE, FACE_ALLOWANCE_MIN } from './stream/syntax.js';
 
 // The bounds on what a frame may decode to, as core/src/model.rs and docs/bitstream.md give
-// them: a stream the Rust decoder refuses for its size is refused here too.
-export const MAX_OUTPUT_FACES = 2 ** 23;
-export const FACES_PER_UNIT_BYTE = 512;
-export const MIN_FACE_ALLOWANCE = 2 ** 20;
+// them (declared in stream/syntax.js): a stream the Rust decoder refuses for its size is
+// refused here too.
+export const MAX_OUTPUT_FACES = FACE_ALLOWANCE_MAX;
+export const FACES_PER_UNIT_BYTE = FACE_ALLOWANCE_PER_BYTE;
+export const MIN_FACE_ALLOWANCE = FACE_ALLOWANCE_MIN;
 
 /** The most output faces a frame unit of `bytes` payload bytes may decode to. */
 export function faceAllowance(bytes) {

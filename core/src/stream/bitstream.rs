@@ -5,19 +5,19 @@
 //! actually present before anything is allocated, and every error names the frame and the
 //! byte offset in the whole stream.
 
+//!
+//! The fields, codes and limits are declared in [`syntax`](super::syntax).
+
 use crate::error::DecodeError;
-use crate::geom::grid::{Grid, BITS_RANGE};
+use crate::geom::grid::Grid;
 use crate::residual::quantize::AqParams;
 use crate::residual::subdivide::Scheme;
 use crate::residual::transform::Lifting;
-
-pub const MAGIC: &[u8; 4] = b"DMSH";
-/// Version 2: one subdivision scheme per iteration (version 1 had one for all).
-pub const VERSION: u8 = 5;
-/// Size of the fixed part of a frame unit: type, payload length, CRC.
-pub const UNIT_OVERHEAD: usize = 1 + 4 + 4;
-/// Subdivision iterations the format allows (each multiplies the face count by four).
-pub const MAX_SUBDIV: u32 = 6;
+use crate::stream::syntax::{
+    self, Ty, COMPONENTS_ALL, COMPONENTS_NORMAL, FLAG_ON, FRAME_INTRA, FRAME_PREDICTED, HEADER_FRAME_COUNT_AT, HEADER_VERSION_AT, POSITION_BITS_MAX, POSITION_BITS_MIN,
+    HEADER, SCHEME_LOOP, SCHEME_MIDPOINT, UPDATE_DEN_MIN,
+};
+pub use crate::stream::syntax::{MAGIC, MAX_SUBDIV, TEXTURE_UNIT, UNIT_OVERHEAD, VERSION};
 
 /// Everything the decoder needs before the first frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,15 +47,10 @@ impl SequenceHeader {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FrameType {
     /// Coded on its own: the base mesh with its connectivity.
-    Intra = 0,
+    Intra = FRAME_INTRA as isize,
     /// The base mesh is a reference frame's base mesh moved: same connectivity, coded motion.
-    Predicted = 1,
+    Predicted = FRAME_PREDICTED as isize,
 }
-
-/// Unit type byte of a texture unit: it follows the frame unit it belongs to and carries
-/// that frame's texture data (see `docs/bitstream.md`), which the geometry decoder passes
-/// through without reading it.
-pub const TEXTURE_UNIT: u8 = 2;
 
 /// One frame unit as found in the stream.
 #[derive(Debug, Clone, PartialEq)]
@@ -166,16 +161,19 @@ pub fn write_header(h: &SequenceHeader) -> Vec<u8> {
     w.u8(h.base_bits as u8);
     w.u8(h.schemes.len() as u8);
     for &s in &h.schemes {
-        w.u8(s as u8);
+        w.u8(match s {
+            Scheme::Midpoint => SCHEME_MIDPOINT,
+            Scheme::Loop => SCHEME_LOOP,
+        });
     }
-    w.u8(h.lifting.per_valence as u8);
+    w.u8(if h.lifting.per_valence { FLAG_ON } else { 0 });
     for &(num, den) in &h.lifting.update {
         w.u8(num);
         w.u8(den);
     }
     w.u8(h.components);
     let aq = h.aq.unwrap_or_default();
-    w.u8(h.aq.is_some() as u8);
+    w.u8(if h.aq.is_some() { FLAG_ON } else { 0 });
     w.f64(aq.alpha);
     w.f64(aq.delta);
     w.f64(aq.h);
@@ -187,7 +185,7 @@ pub fn write_header(h: &SequenceHeader) -> Vec<u8> {
 /// Parses and checks the sequence header; returns it and the offset of the first unit.
 pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> {
     let mut r = Reader::new(data, 0, None);
-    if r.bytes(4, "magic")? != MAGIC {
+    if r.bytes(MAGIC.len(), "magic")? != MAGIC {
         return Err(DecodeError::new(None, 0, "not a dynmesh stream (bad magic)"));
     }
     let version = r.u8("version")?;
@@ -207,13 +205,14 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
     let scheme_codes = r.bytes(subdiv_iterations as usize, "subdivision schemes")?;
     let lifting_at = data.len() - r.remaining();
     let per_valence = r.u8("lifting valence flag")?;
-    let weights = r.bytes(2 * subdiv_iterations as usize, "lifting update weights")?;
-    let lifting = Lifting { update: weights.chunks(2).map(|w| (w[0], w[1])).collect(), per_valence: per_valence == 1 };
+    let weights = r.bytes(Ty::U8Pair.width() * subdiv_iterations as usize, "lifting update weights")?;
+    let lifting = Lifting { update: weights.chunks(2).map(|w| (w[0], w[1])).collect(), per_valence: per_valence == FLAG_ON };
     let components = r.u8("displacement components")?;
     let aq_flag = r.u8("adaptive quantization flag")?;
     let aq = AqParams { alpha: r.f64("AQ alpha")?, delta: r.f64("AQ delta")?, h: r.f64("AQ h")? };
     let end = data.len() - r.remaining();
     let crc = r.u32("header CRC")?;
+    let header_len = data.len() - r.remaining();
     if crc != crc32fast::hash(&data[..end]) {
         return Err(DecodeError::new(None, end as u64, "sequence header CRC mismatch"));
     }
@@ -221,12 +220,12 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
         .iter()
         .enumerate()
         .map(|(i, &c)| match c {
-            0 => Ok(Scheme::Midpoint),
-            1 => Ok(Scheme::Loop),
+            SCHEME_MIDPOINT => Ok(Scheme::Midpoint),
+            SCHEME_LOOP => Ok(Scheme::Loop),
             s => Err(DecodeError::new(None, (schemes_at + i) as u64, format!("unknown subdivision scheme {s}"))),
         })
         .collect::<Result<Vec<_>, _>>()?;
-    if per_valence > 1 || lifting.update.iter().any(|&(_, den)| den == 0) {
+    if per_valence > FLAG_ON || lifting.update.iter().any(|&(_, den)| den < UPDATE_DEN_MIN) {
         return Err(DecodeError::new(None, lifting_at as u64, "invalid lifting update weights"));
     }
     let header = SequenceHeader {
@@ -236,26 +235,28 @@ pub fn read_header(data: &[u8]) -> Result<(SequenceHeader, usize), DecodeError> 
         schemes,
         lifting,
         components,
-        aq: (aq_flag == 1).then_some(aq),
+        aq: (aq_flag == FLAG_ON).then_some(aq),
     };
-    if aq_flag > 1 || (aq_flag == 1 && !aq.is_valid()) {
-        return Err(DecodeError::new(None, (lifting_at + 1 + 2 * header.schemes.len() + 1) as u64, "invalid adaptive quantization parameters"));
+    if aq_flag > FLAG_ON || (aq_flag == FLAG_ON && !aq.is_valid()) {
+        let aq_at = syntax::offset(HEADER, "aq", header.schemes.len(), &|_| 0, true).expect("a header field");
+        return Err(DecodeError::new(None, aq_at as u64, "invalid adaptive quantization parameters"));
     }
-    validate_header(&header).map_err(|e| DecodeError::new(None, 4, e))?;
-    Ok((header, end + 4))
+    validate_header(&header).map_err(|e| DecodeError::new(None, HEADER_VERSION_AT as u64, e))?;
+    Ok((header, header_len))
 }
 
 fn validate_header(h: &SequenceHeader) -> Result<(), String> {
     if !h.grid.origin.iter().all(|c| c.is_finite()) || !h.grid.step.is_finite() || h.grid.step <= 0.0 {
         return Err("invalid position grid".into());
     }
-    if !BITS_RANGE.contains(&h.grid.bits) {
+    let bits_range = POSITION_BITS_MIN..=POSITION_BITS_MAX;
+    if !bits_range.contains(&h.grid.bits) {
         return Err(format!("position bits {} out of range", h.grid.bits));
     }
-    if !BITS_RANGE.contains(&h.base_bits) || h.base_bits > h.grid.bits {
+    if !bits_range.contains(&h.base_bits) || h.base_bits > h.grid.bits {
         return Err(format!("base mesh position bits {} out of range", h.base_bits));
     }
-    if h.components != 1 && h.components != 3 {
+    if h.components != COMPONENTS_NORMAL && h.components != COMPONENTS_ALL {
         return Err(format!("{} displacement components (1 or 3)", h.components));
     }
     Ok(())
@@ -290,8 +291,8 @@ pub fn read_units<'a>(data: &'a [u8], start: usize, frame_count: u32) -> Result<
     for f in 0..frame_count {
         let (t, payload, offset, next) = read_unit(data, pos, f)?;
         let frame_type = match t {
-            0 => FrameType::Intra,
-            1 => FrameType::Predicted,
+            FRAME_INTRA => FrameType::Intra,
+            FRAME_PREDICTED => FrameType::Predicted,
             _ => return Err(DecodeError::new(Some(f), pos as u64, format!("unit type {t} where a frame unit was expected"))),
         };
         pos = next;
@@ -314,7 +315,7 @@ pub fn read_units<'a>(data: &'a [u8], start: usize, frame_count: u32) -> Result<
 pub fn check_frame_count(data: &[u8], start: usize, frame_count: u32) -> Result<(), DecodeError> {
     let plausible = (data.len().saturating_sub(start) / UNIT_OVERHEAD) as u32;
     if frame_count > plausible {
-        return Err(DecodeError::new(None, 5, format!("header claims {frame_count} frames; the stream has room for at most {plausible}")));
+        return Err(DecodeError::new(None, HEADER_FRAME_COUNT_AT as u64, format!("header claims {frame_count} frames; the stream has room for at most {plausible}")));
     }
     Ok(())
 }
@@ -329,7 +330,7 @@ fn read_unit(data: &[u8], pos: usize, frame: u32) -> Result<(u8, &[u8], u64, usi
     if crc != crc32fast::hash(&data[pos..end]) {
         return Err(DecodeError::new(Some(frame), end as u64, "unit CRC mismatch (corrupted data)"));
     }
-    Ok((t, payload, offset, end + 4))
+    Ok((t, payload, offset, pos + data[pos..].len() - r.remaining()))
 }
 
 #[cfg(test)]

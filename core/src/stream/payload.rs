@@ -3,10 +3,12 @@
 //!
 //! Intra: QP, base mesh block, coefficient block. Predicted: reference distance, QP, motion
 //! block, mode (coefficient differences, refresh), refresh block if any, coefficient block.
+//! The fields and codes are declared in [`syntax`](super::syntax) (`INTRA_PAYLOAD`,
+//! `PREDICTED_PAYLOAD`).
 
 use crate::error::DecodeError;
-use crate::residual::quantize;
 use crate::stream::bitstream::{FrameType, Reader, Unit, Writer};
+use crate::stream::syntax::{MODE_COEFFICIENT_DIFFERENCES, MODE_MAX, MODE_REFRESH, QP_MAX, QP_MIN};
 
 /// The fields of a frame payload.
 #[derive(Debug, Clone, PartialEq)]
@@ -44,7 +46,8 @@ impl<'a> Payload<'a> {
         w.block(self.base);
         if predicted {
             let refreshed = !self.refresh.is_empty();
-            w.u8(self.coefficients_predicted as u8 | (refreshed as u8) << 1);
+            let differences = if self.coefficients_predicted { MODE_COEFFICIENT_DIFFERENCES } else { 0 };
+            w.u8(differences | if refreshed { MODE_REFRESH } else { 0 });
             if refreshed {
                 w.block(self.refresh);
             }
@@ -61,7 +64,7 @@ impl<'a> Payload<'a> {
         let predicted = unit.frame_type == FrameType::Predicted;
         let reference_distance = if predicted { reference_distance(&mut r, frame)? } else { 0 };
         let qp = r.i32("QP")?;
-        if !quantize::QP_RANGE.contains(&qp) {
+        if !(QP_MIN..=QP_MAX).contains(&qp) {
             return Err(r.error(format!("QP {qp} out of range")));
         }
         let (base, base_offset) = r.block("base mesh")?;
@@ -91,7 +94,7 @@ fn reference_distance(r: &mut Reader, frame: u32) -> Result<u32, DecodeError> {
 /// reference's (bit 0) and whether a refresh block follows (bit 1).
 fn predicted_mode(r: &mut Reader) -> Result<(bool, bool), DecodeError> {
     match r.u8("predicted frame mode")? {
-        m @ 0..=3 => Ok((m & 1 != 0, m & 2 != 0)),
+        m @ 0..=MODE_MAX => Ok((m & MODE_COEFFICIENT_DIFFERENCES != 0, m & MODE_REFRESH != 0)),
         m => Err(r.error(format!("unknown predicted frame mode {m}"))),
     }
 }

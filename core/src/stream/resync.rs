@@ -14,7 +14,11 @@
 //! neither count reaches are reported damaged: a frame is never decoded under a number that
 //! might not be its own.
 
-use crate::stream::bitstream::{FrameType, TEXTURE_UNIT, UNIT_OVERHEAD};
+use crate::stream::bitstream::FrameType;
+use crate::stream::syntax::{FRAME_INTRA, FRAME_PREDICTED, TEXTURE_UNIT, UNIT_LENGTH_AT, UNIT_OVERHEAD, UNIT_PAYLOAD_AT};
+
+/// Bytes of a unit's CRC, after its payload.
+const CRC_LEN: usize = UNIT_OVERHEAD - UNIT_PAYLOAD_AT;
 
 /// Bytes the resynchronising search may hash, per byte of stream (plus a floor).
 const RESYNC_BUDGET_PER_BYTE: usize = 64;
@@ -96,14 +100,14 @@ fn itemize(data: &[u8], start: usize) -> Vec<Item> {
         let mut unbounded = usize::MAX;
         match check_unit(data, pos, &mut unbounded) {
             Ok((t, len)) => {
-                let offset = pos + 5;
+                let offset = pos + UNIT_PAYLOAD_AT;
                 items.push(match t {
-                    0 => Item::Frame { frame_type: FrameType::Intra, offset, len },
-                    1 => Item::Frame { frame_type: FrameType::Predicted, offset, len },
+                    FRAME_INTRA => Item::Frame { frame_type: FrameType::Intra, offset, len },
+                    FRAME_PREDICTED => Item::Frame { frame_type: FrameType::Predicted, offset, len },
                     TEXTURE_UNIT => Item::Texture { offset, len },
-                    t => gap(pos, offset + len + 4, Kind::Unknown, format!("unit type {t}")),
+                    t => gap(pos, pos + UNIT_OVERHEAD + len, Kind::Unknown, format!("unit type {t}")),
                 });
-                pos = offset + len + 4;
+                pos += UNIT_OVERHEAD + len;
             }
             Err(reason) => {
                 let (end, kind) = skip_damaged(data, pos, &mut budget);
@@ -125,7 +129,7 @@ fn skip_damaged(data: &[u8], pos: usize, budget: &mut usize) -> (usize, Kind) {
     if let Some(next) = claimed_end(data, pos) {
         if next == data.len() || check_unit(data, next, budget).is_ok() {
             let kind = match data[pos] {
-                0 | 1 => Kind::Frame,
+                FRAME_INTRA | FRAME_PREDICTED => Kind::Frame,
                 TEXTURE_UNIT => Kind::Texture,
                 _ => Kind::Unknown,
             };
@@ -142,7 +146,7 @@ fn skip_damaged(data: &[u8], pos: usize, budget: &mut usize) -> (usize, Kind) {
 
 /// The end of the unit at `pos` according to its length field, if that lies in the stream.
 fn claimed_end(data: &[u8], pos: usize) -> Option<usize> {
-    let len = u32::from_le_bytes(data.get(pos + 1..pos + 5)?.try_into().ok()?) as usize;
+    let len = u32::from_le_bytes(data.get(pos + UNIT_LENGTH_AT..pos + UNIT_PAYLOAD_AT)?.try_into().ok()?) as usize;
     let end = pos.checked_add(UNIT_OVERHEAD)?.checked_add(len)?;
     (end <= data.len()).then_some(end)
 }
@@ -157,9 +161,9 @@ fn check_unit(data: &[u8], pos: usize, budget: &mut usize) -> Result<(u8, usize)
     if t > TEXTURE_UNIT {
         return Err(format!("unit type {t}"));
     }
-    let body = &data[pos..end - 4];
+    let body = &data[pos..end - CRC_LEN];
     *budget = budget.saturating_sub(body.len());
-    let crc = u32::from_le_bytes(data[end - 4..end].try_into().expect("four bytes"));
+    let crc = u32::from_le_bytes(data[end - CRC_LEN..end].try_into().expect("four bytes"));
     if crc != crc32fast::hash(body) {
         return Err("unit CRC mismatch (corrupted data)".into());
     }

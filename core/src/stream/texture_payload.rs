@@ -2,22 +2,15 @@
 //! by the encoder's texture stage and read by the decoder's through this one pair of
 //! functions (`docs/bitstream.md`, "Texture unit payload"). What the blocks hold is the texture
 //! stage's business (`crate::texture::uvcoder` for the atlas, a video codec for the video);
-//! this module only lays them out and checks the fields.
+//! this module only lays them out and checks the fields, which [`syntax`](super::syntax)
+//! declares (`TEXTURE_PAYLOAD`).
 
 use crate::error::Corrupt;
+use crate::stream::syntax::{TEXTURE_FIXED as FIXED, TEXTURE_FRAMES_MIN, UV_BITS_MAX, UV_BITS_MIN};
+pub use crate::stream::syntax::{MAX_SIDE, MIN_SIDE, TEXTURE_CODECS, TEXTURE_PAYLOAD_VERSION};
 
-/// Version of the texture unit payload layout.
-pub const TEXTURE_PAYLOAD_VERSION: u8 = 1;
-
-/// Texture video codecs, by the index the payload signals.
-pub const TEXTURE_CODECS: [&str; 2] = ["hevc", "av1"];
-
-/// The atlas side's bounds (texels, each even).
-pub const MIN_SIDE: u16 = 16;
-pub const MAX_SIDE: u16 = 16384;
-
-/// Bytes of the fixed fields before the atlas block.
-const FIXED: usize = 11;
+/// Bytes of a block's length field (`atlas_len`, `video_len`).
+const LEN: usize = 4;
 
 /// The fields of a texture unit payload.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -39,7 +32,7 @@ pub struct TexturePayload {
 impl TexturePayload {
     /// The payload's bytes. The fields are written as they are; [`Self::read`] is what checks.
     pub fn to_bytes(&self) -> Vec<u8> {
-        let mut out = Vec::with_capacity(FIXED + 8 + self.atlas.len() + self.video.len());
+        let mut out = Vec::with_capacity(FIXED + 2 * LEN + self.atlas.len() + self.video.len());
         out.extend([TEXTURE_PAYLOAD_VERSION, self.codec]);
         out.extend(self.width.to_le_bytes());
         out.extend(self.height.to_le_bytes());
@@ -58,9 +51,19 @@ impl TexturePayload {
         if data.len() < FIXED {
             return Err("texture unit is truncated".into());
         }
-        let u16_at = |i: usize| u16::from_le_bytes([data[i], data[i + 1]]);
         let u32_at = |i: usize| u32::from_le_bytes([data[i], data[i + 1], data[i + 2], data[i + 3]]);
-        let (version, codec, width, height, uv_bits, frames) = (data[0], data[1], u16_at(2), u16_at(4), data[6], u32_at(7));
+        // The fixed fields, in the order and widths of `TEXTURE_PAYLOAD`.
+        let mut at = 0;
+        let mut next = |n: usize| {
+            at += n;
+            &data[at - n..at]
+        };
+        let version = next(1)[0];
+        let codec = next(1)[0];
+        let width = u16::from_le_bytes(next(2).try_into().expect("two bytes"));
+        let height = u16::from_le_bytes(next(2).try_into().expect("two bytes"));
+        let uv_bits = next(1)[0];
+        let frames = u32::from_le_bytes(next(4).try_into().expect("four bytes"));
         if version != TEXTURE_PAYLOAD_VERSION {
             return Err(format!("texture unit version {version} is not supported").into());
         }
@@ -71,19 +74,19 @@ impl TexturePayload {
         if !side_ok(width) || !side_ok(height) {
             return Err(format!("texture size {width} x {height} is out of range").into());
         }
-        if !(1..=16).contains(&uv_bits) || frames == 0 {
+        if !(UV_BITS_MIN..=UV_BITS_MAX).contains(&uv_bits) || frames < TEXTURE_FRAMES_MIN {
             return Err("texture unit has invalid UV bits or frame count".into());
         }
         let mut pos = FIXED;
         let mut block = |what: &str| -> Result<Vec<u8>, Corrupt> {
-            if pos + 4 > data.len() {
+            if pos + LEN > data.len() {
                 return Err(format!("texture unit is truncated before its {what}").into());
             }
             let n = u32_at(pos) as usize;
-            if n > data.len() - pos - 4 {
+            if n > data.len() - pos - LEN {
                 return Err(format!("texture unit's {what} is truncated").into());
             }
-            pos += 4 + n;
+            pos += LEN + n;
             Ok(data[pos - n..pos].to_vec())
         };
         let (atlas, video) = (block("atlas")?, block("video")?);

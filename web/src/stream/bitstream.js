@@ -7,16 +7,23 @@
 // one unit at `pos` ({type, offset, length, next}); the player's worker splits a stream that
 // is still arriving with it, unit by unit.
 
+//
+// The fields, codes and limits come from ./syntax.js (`core/src/stream/syntax.rs`).
+
 import { crc32 } from './crc32.js';
 import { DecodeError } from '../error.js';
+import {
+  MAGIC, VERSION, FRAME_INTRA, FRAME_PREDICTED, TEXTURE_UNIT, MAX_SUBDIV, UNIT_OVERHEAD, UNIT_LENGTH_AT, UNIT_PAYLOAD_AT,
+  HEADER, HEADER_VERSION_AT, HEADER_FRAME_COUNT_AT, SCHEME_MIDPOINT, SCHEME_LOOP, POSITION_BITS_MIN, POSITION_BITS_MAX,
+  COMPONENTS_NORMAL, COMPONENTS_ALL, FLAG_ON, UPDATE_DEN_MIN, Ty, width, offset as fieldOffset,
+} from './syntax.js';
 
-export const VERSION = 5;
-export const UNIT_OVERHEAD = 9;
-export const MAX_SUBDIV = 6;
-export const TEXTURE_UNIT = 2;
-export const INTRA = 0;
-export const PREDICTED = 1;
-export const SCHEME_NAMES = ['midpoint', 'loop'];
+export { VERSION, UNIT_OVERHEAD, MAX_SUBDIV, TEXTURE_UNIT };
+export const INTRA = FRAME_INTRA;
+export const PREDICTED = FRAME_PREDICTED;
+export const SCHEME_NAMES = [];
+SCHEME_NAMES[SCHEME_MIDPOINT] = 'midpoint';
+SCHEME_NAMES[SCHEME_LOOP] = 'loop';
 
 /** Bounds-checked little-endian reader that knows where its bytes sit in the stream. */
 export class Reader {
@@ -93,8 +100,8 @@ export class Reader {
  */
 export function readHeader(data) {
   const r = new Reader(data, 0, data.length, null);
-  const m = r.take(4, 'magic');
-  if (data[m] !== 0x44 || data[m + 1] !== 0x4d || data[m + 2] !== 0x53 || data[m + 3] !== 0x48) {
+  const m = r.take(MAGIC.length, 'magic');
+  if (MAGIC.some((b, i) => data[m + i] !== b)) {
     throw new DecodeError(null, 0, 'not a dynmesh stream (bad magic)');
   }
   const version = r.u8('version');
@@ -109,41 +116,44 @@ export function readHeader(data) {
   const schemesAt = r.take(iterations, 'subdivision schemes');
   const liftingAt = r.pos;
   const perValence = r.u8('lifting valence flag');
-  const weightsAt = r.take(2 * iterations, 'lifting update weights');
+  const pair = width(Ty.U8Pair);
+  const weightsAt = r.take(pair * iterations, 'lifting update weights');
   const components = r.u8('displacement components');
   const aqFlag = r.u8('adaptive quantization flag');
   const aq = { alpha: r.f64('AQ alpha'), delta: r.f64('AQ delta'), h: r.f64('AQ h') };
   const end = r.pos;
   const crc = r.u32('header CRC');
+  const length = r.pos;
   if (crc !== crc32(data, 0, end)) throw new DecodeError(null, end, 'sequence header CRC mismatch');
   const schemes = [];
   for (let i = 0; i < iterations; i++) {
     const s = data[schemesAt + i];
-    if (s > 1) throw new DecodeError(null, schemesAt + i, `unknown subdivision scheme ${s}`);
+    if (s !== SCHEME_MIDPOINT && s !== SCHEME_LOOP) throw new DecodeError(null, schemesAt + i, `unknown subdivision scheme ${s}`);
     schemes.push(s);
   }
   const update = [];
-  for (let i = 0; i < iterations; i++) update.push([data[weightsAt + 2 * i], data[weightsAt + 2 * i + 1]]);
-  if (perValence > 1 || update.some(([, den]) => den === 0)) {
+  for (let i = 0; i < iterations; i++) update.push([data[weightsAt + pair * i], data[weightsAt + pair * i + 1]]);
+  if (perValence > FLAG_ON || update.some(([, den]) => den < UPDATE_DEN_MIN)) {
     throw new DecodeError(null, liftingAt, 'invalid lifting update weights');
   }
   const aqValid = Number.isFinite(aq.alpha) && aq.alpha > 0 && Number.isFinite(aq.h) && aq.h > 0 && Math.abs(aq.delta) < 1;
-  if (aqFlag > 1 || (aqFlag === 1 && !aqValid)) {
-    throw new DecodeError(null, liftingAt + 1 + 2 * iterations + 1, 'invalid adaptive quantization parameters');
+  if (aqFlag > FLAG_ON || (aqFlag === FLAG_ON && !aqValid)) {
+    throw new DecodeError(null, fieldOffset(HEADER, 'aq', iterations, () => 0, true), 'invalid adaptive quantization parameters');
   }
-  const lifting = { update, perValence: perValence === 1 };
-  const header = { frameCount, origin, step, bits, baseBits, schemes, lifting, components, aq: aqFlag === 1 ? aq : null, length: end + 4 };
+  const lifting = { update, perValence: perValence === FLAG_ON };
+  const header = { frameCount, origin, step, bits, baseBits, schemes, lifting, components, aq: aqFlag === FLAG_ON ? aq : null, length };
   const invalid = validate(header);
-  if (invalid) throw new DecodeError(null, 4, invalid);
+  if (invalid) throw new DecodeError(null, HEADER_VERSION_AT, invalid);
   return header;
 }
 
 /** @param {Header} h @returns {string|null} */
 function validate(h) {
   if (!h.origin.every(Number.isFinite) || !Number.isFinite(h.step) || h.step <= 0) return 'invalid position grid';
-  if (h.bits < 8 || h.bits > 20) return `position bits ${h.bits} out of range`;
-  if (h.baseBits < 8 || h.baseBits > 20 || h.baseBits > h.bits) return `base mesh position bits ${h.baseBits} out of range`;
-  if (h.components !== 1 && h.components !== 3) return `${h.components} displacement components (1 or 3)`;
+  const bitsOk = (b) => b >= POSITION_BITS_MIN && b <= POSITION_BITS_MAX;
+  if (!bitsOk(h.bits)) return `position bits ${h.bits} out of range`;
+  if (!bitsOk(h.baseBits) || h.baseBits > h.bits) return `base mesh position bits ${h.baseBits} out of range`;
+  if (h.components !== COMPONENTS_NORMAL && h.components !== COMPONENTS_ALL) return `${h.components} displacement components (1 or 3)`;
   return null;
 }
 
@@ -165,7 +175,7 @@ export function readUnits(data, header) {
   const start = header.length;
   const plausible = Math.floor(Math.max(0, data.length - start) / UNIT_OVERHEAD);
   if (header.frameCount > plausible) {
-    throw new DecodeError(null, 5, `header claims ${header.frameCount} frames; the stream has room for at most ${plausible}`);
+    throw new DecodeError(null, HEADER_FRAME_COUNT_AT, `header claims ${header.frameCount} frames; the stream has room for at most ${plausible}`);
   }
   const units = [];
   let pos = start;
@@ -202,8 +212,8 @@ export function readFrameUnit(data, pos, frame) {
  * field alone, without reading or checking it; null while the length field is not in `data`.
  */
 export function unitEnd(data, pos) {
-  if (pos + 5 > data.length) return null;
-  return pos + UNIT_OVERHEAD + new DataView(data.buffer, data.byteOffset + pos + 1, 4).getUint32(0, true);
+  if (pos + UNIT_PAYLOAD_AT > data.length) return null;
+  return pos + UNIT_OVERHEAD + new DataView(data.buffer, data.byteOffset + pos + UNIT_LENGTH_AT, 4).getUint32(0, true);
 }
 
 export function readUnit(data, pos, frame) {
@@ -213,5 +223,5 @@ export function readUnit(data, pos, frame) {
   const end = r.pos;
   const crc = r.u32('unit CRC');
   if (crc !== crc32(data, pos, end)) throw new DecodeError(frame, end, 'unit CRC mismatch (corrupted data)');
-  return { type, offset, length: bytes.length, next: end + 4 };
+  return { type, offset, length: bytes.length, next: r.pos };
 }

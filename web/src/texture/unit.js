@@ -8,31 +8,42 @@
 // null for an untextured stream. The video itself is the player's (web/player/video.js).
 
 import { decodeUvAtlas, subdivideUv } from './uvcoder.js';
+import {
+  TEXTURE_CODECS, TEXTURE_PAYLOAD_VERSION, TEXTURE_FIXED, MIN_SIDE, MAX_SIDE, UV_BITS_MIN, UV_BITS_MAX, TEXTURE_FRAMES_MIN,
+} from '../stream/syntax.js';
 
-export const CODECS = ['hevc', 'av1'];
+export const CODECS = TEXTURE_CODECS;
+/** Bytes of a block's length field (`atlas_len`, `video_len`). */
+const LEN = 4;
 
 /**
  * @param {Uint8Array} data a texture unit payload
  * @returns {{codec: string, width: number, height: number, uvBits: number, frames: number, atlas: Uint8Array, video: Uint8Array}}
  */
 export function readTextureUnit(data) {
-  if (data.length < 11) throw new Error('texture unit is truncated');
+  if (data.length < TEXTURE_FIXED) throw new Error('texture unit is truncated');
   const v = new DataView(data.buffer, data.byteOffset, data.byteLength);
-  const [version, codec, width, height, uvBits, frames] = [v.getUint8(0), v.getUint8(1), v.getUint16(2, true), v.getUint16(4, true), v.getUint8(6), v.getUint32(7, true)];
-  if (version !== 1) throw new Error(`texture unit version ${version} is not supported`);
+  // The fixed fields, in the order and widths of TEXTURE_PAYLOAD.
+  let at = 0;
+  const next = (n) => (at += n) - n;
+  const version = v.getUint8(next(1)), codec = v.getUint8(next(1));
+  const width = v.getUint16(next(2), true), height = v.getUint16(next(2), true);
+  const uvBits = v.getUint8(next(1)), frames = v.getUint32(next(4), true);
+  if (version !== TEXTURE_PAYLOAD_VERSION) throw new Error(`texture unit version ${version} is not supported`);
   if (codec >= CODECS.length) throw new Error(`unknown texture codec ${codec}`);
-  if (!(width >= 16 && width <= 16384 && height >= 16 && height <= 16384 && width % 2 === 0 && height % 2 === 0)) {
+  const sideOk = (s) => s >= MIN_SIDE && s <= MAX_SIDE && s % 2 === 0;
+  if (!(sideOk(width) && sideOk(height))) {
     throw new Error(`texture size ${width} x ${height} is out of range`);
   }
-  if (!(uvBits >= 1 && uvBits <= 16) || frames === 0) throw new Error('texture unit has invalid UV bits or frame count');
+  if (!(uvBits >= UV_BITS_MIN && uvBits <= UV_BITS_MAX) || frames < TEXTURE_FRAMES_MIN) throw new Error('texture unit has invalid UV bits or frame count');
   const blocks = [];
-  let pos = 11;
+  let pos = TEXTURE_FIXED;
   for (const what of ['atlas', 'video']) {
-    if (pos + 4 > data.length) throw new Error(`texture unit is truncated before its ${what}`);
+    if (pos + LEN > data.length) throw new Error(`texture unit is truncated before its ${what}`);
     const n = v.getUint32(pos, true);
-    if (pos + 4 + n > data.length) throw new Error(`texture unit's ${what} is truncated`);
-    blocks.push(data.subarray(pos + 4, pos + 4 + n));
-    pos += 4 + n;
+    if (pos + LEN + n > data.length) throw new Error(`texture unit's ${what} is truncated`);
+    blocks.push(data.subarray(pos + LEN, pos + LEN + n));
+    pos += LEN + n;
   }
   if (pos !== data.length) throw new Error('unexpected bytes at the end of the texture unit');
   return { codec: CODECS[codec], width, height, uvBits, frames, atlas: blocks[0], video: blocks[1] };
