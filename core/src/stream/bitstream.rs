@@ -179,6 +179,7 @@ pub fn write_header(h: &SequenceHeader) -> Vec<u8> {
     w.f64(aq.h);
     let crc = crc32fast::hash(&w.bytes);
     w.u32(crc);
+    debug_assert_eq!(w.bytes.len(), syntax::header_len(h.schemes.len()));
     w.bytes
 }
 

@@ -13,6 +13,11 @@
 //! What the entropy-coded blocks hold (base mesh, motion, refresh, coefficients, UV atlas) is
 //! their coders' business and is not declared here.
 
+// The whole syntax is declared, also the entries that only the tests (against the document and
+// the writers) and the JavaScript mirror read, and the limits other modules keep under their
+// own names (`model::face_allowance`, which the tests check against these).
+#![allow(dead_code)]
+
 /// The type of one element of a field.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Ty {
