@@ -3,21 +3,21 @@
 //! RGB textures and the 10-bit 4:2:0 planes of the texture video.
 //!
 //! Arrays are checked here (shapes, index ranges, finite values) so that the core's contracts
-//! hold and a mistake surfaces as a ValueError naming the problem, never as a panic. The core
+//! hold and a mistake surfaces as an InputError naming the problem, never as a panic. The core
 //! work runs with the GIL released.
 
 use numpy::ndarray::{Array2, Array3};
 use numpy::{IntoPyArray, PyArray2, PyArray3, PyReadonlyArray2, PyReadonlyArray3};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use dynmesh::geom::mesh::Mesh;
 use dynmesh::eval::metrics;
-use dynmesh::eval::sampling::SamplingGrid;
 use dynmesh::eval::render::View;
-use dynmesh::texture::{self, Texture, UvMesh};
+use dynmesh::eval::sampling::SamplingGrid;
+use dynmesh::texturing::{self, Texture, UvMesh};
+use dynmesh::Mesh;
 
+use crate::errors::{core_error, input_error, released};
 use crate::{faces_of, positions_of};
 
 /// Largest metric grid size (the test conditions use 1024): the ray limit
@@ -72,7 +72,7 @@ fn textured_distortion<'py>(
     grid_size: u32,
 ) -> PyResult<Bound<'py, PyDict>> {
     let named = |what: &'static str| {
-        move |e: PyErr| PyValueError::new_err(format!("{what}: {}", e.value(py)))
+        move |e: PyErr| input_error(format!("{what}: {}", e.value(py)))
     };
     let reference = valid_uv_mesh(&ref_positions, &ref_faces, &ref_uv, &ref_uv_faces)
         .map_err(named("reference"))?;
@@ -82,13 +82,12 @@ fn textured_distortion<'py>(
     let dec_tex = texture_of(&dec_texture).map_err(named("decoded texture"))?;
     let grid = grid_of(box_min, box_max, grid_size)?;
     if !(peak.is_finite() && peak > 0.0) {
-        return Err(PyValueError::new_err(format!(
+        return Err(input_error(format!(
             "peak must be a positive finite number, not {peak}"
         )));
     }
-    py.allow_threads(|| crate::check_sampling(&reference.mesh, &decoded.mesh, &grid, true))?;
-    let d =
-        py.allow_threads(|| metrics::textured_mse(&reference, &ref_tex, &decoded, &dec_tex, &grid));
+    released(py, || crate::check_sampling(&reference.mesh, &decoded.mesh, &grid, true))??;
+    let d = released(py, || metrics::textured_mse(&reference, &ref_tex, &decoded, &dec_tex, &grid))?;
     crate::check_measured(&[d.geometry.d1_mse, d.geometry.d2_mse])?;
     crate::check_measured(&d.colour_mse)?;
     let [y, cb, cr] = d.colour_mse;
@@ -133,13 +132,13 @@ fn render<'py>(
 ) -> PyResult<Bound<'py, PyArray3<u8>>> {
     for (name, side) in [("width", width), ("height", height)] {
         if !(1..=MAX_IMAGE_SIDE).contains(&side) {
-            return Err(PyValueError::new_err(format!(
+            return Err(input_error(format!(
                 "{name} must be from 1 to {MAX_IMAGE_SIDE}, not {side}"
             )));
         }
     }
     if !(azimuth.is_finite() && elevation.is_finite()) {
-        return Err(PyValueError::new_err("azimuth and elevation must be finite"));
+        return Err(input_error("azimuth and elevation must be finite"));
     }
     let mesh = match (&uv, &uv_faces) {
         (Some(uv), Some(uv_faces)) => uv_mesh_of(&positions, &faces, uv, uv_faces)?,
@@ -148,7 +147,7 @@ fn render<'py>(
             let f = faces_of(&faces, p.len())?;
             UvMesh { mesh: Mesh::new(p, f), ..UvMesh::default() }
         }
-        _ => return Err(PyValueError::new_err("give both uv and uv_faces, or neither")),
+        _ => return Err(input_error("give both uv and uv_faces, or neither")),
     };
     if !mesh.mesh.faces.is_empty() {
         let check = if mesh.uv_faces.is_empty() {
@@ -156,12 +155,11 @@ fn render<'py>(
         } else {
             mesh.validate()
         };
-        check.map_err(PyValueError::new_err)?;
+        check.map_err(input_error)?;
     }
     let texture = texture.as_ref().map(texture_of).transpose()?;
     let view = View { azimuth_deg: azimuth, elevation_deg: elevation };
-    let image =
-        py.allow_threads(|| dynmesh::eval::render::render(&mesh, texture.as_ref(), width, height, view));
+    let image = released(py, || dynmesh::eval::render::render(&mesh, texture.as_ref(), width, height, view))?;
     let flat = image.rgb.into_flattened();
     Ok(Array3::from_shape_vec((height, width, 3), flat).expect("shape").into_pyarray(py))
 }
@@ -172,10 +170,10 @@ fn render<'py>(
 fn rgb_to_yuv420<'py>(py: Python<'py>, image: PyReadonlyArray3<'py, u8>) -> PyResult<Bound<'py, PyArray2<u16>>> {
     let t = texture_of(&image)?;
     if t.width % 2 != 0 || t.height % 2 != 0 {
-        return Err(PyValueError::new_err(format!("4:2:0 needs even sides, not {}x{}", t.width, t.height)));
+        return Err(input_error(format!("4:2:0 needs even sides, not {}x{}", t.width, t.height)));
     }
     let (w, h) = (t.width, t.height);
-    let planes = py.allow_threads(|| texture::yuv420_10bit(&t));
+    let planes = released(py, || texturing::yuv420_10bit(&t))?;
     Ok(Array2::from_shape_vec((h * 3 / 2, w), planes).expect("shape").into_pyarray(py))
 }
 
@@ -186,14 +184,12 @@ fn yuv420_to_rgb<'py>(py: Python<'py>, planes: PyReadonlyArray2<'py, u16>) -> Py
     let v = planes.as_array();
     let (rows, width) = v.dim();
     if rows % 3 != 0 {
-        return Err(PyValueError::new_err(format!("a 4:2:0 frame has 3H/2 rows, not {rows}")));
+        return Err(input_error(format!("a 4:2:0 frame has 3H/2 rows, not {rows}")));
     }
     let height = rows * 2 / 3;
     let v = v.as_standard_layout();
     let samples = v.as_slice().expect("standard layout is contiguous");
-    let t = py
-        .allow_threads(|| texture::rgb_of_yuv420_10bit(samples, width, height))
-        .map_err(PyValueError::new_err)?;
+    let t = released(py, || texturing::rgb_of_yuv420_10bit(samples, width, height))?.map_err(core_error)?;
     let flat = t.rgb.into_flattened();
     Ok(Array3::from_shape_vec((height, width, 3), flat).expect("shape").into_pyarray(py))
 }
@@ -206,7 +202,7 @@ pub(crate) fn valid_uv_mesh(
     uv_faces: &PyReadonlyArray2<i64>,
 ) -> PyResult<UvMesh> {
     let mesh = uv_mesh_of(positions, faces, uv, uv_faces)?;
-    mesh.validate().map_err(PyValueError::new_err)?;
+    mesh.validate().map_err(input_error)?;
     Ok(mesh)
 }
 
@@ -227,7 +223,7 @@ fn uv_mesh_of(
 pub(crate) fn uv_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 2]>> {
     let v = a.as_array();
     if v.ncols() != 2 {
-        return Err(PyValueError::new_err("uv must have shape (K, 2)"));
+        return Err(input_error("uv must have shape (K, 2)"));
     }
     Ok(v.rows().into_iter().map(|r| [r[0], r[1]]).collect())
 }
@@ -240,7 +236,7 @@ pub(crate) fn uv_faces_of(
 ) -> PyResult<Vec<[u32; 3]>> {
     let v = a.as_array();
     if v.ncols() != 3 || v.nrows() != face_count {
-        return Err(PyValueError::new_err(format!(
+        return Err(input_error(format!(
             "uv_faces must have shape ({face_count}, 3), one row per face"
         )));
     }
@@ -250,7 +246,7 @@ pub(crate) fn uv_faces_of(
         .map(|(i, r)| {
             let t = [r[0], r[1], r[2]];
             if t.iter().any(|&x| x < 0 || x as u64 >= uv_count as u64) {
-                return Err(PyValueError::new_err(format!(
+                return Err(input_error(format!(
                     "uv_faces row {i} refers to a UV that does not exist (there are {uv_count}, numbered from 0)"
                 )));
             }
@@ -264,7 +260,7 @@ pub(crate) fn texture_of(a: &PyReadonlyArray3<u8>) -> PyResult<Texture> {
     let v = a.as_array();
     let (height, width, channels) = v.dim();
     if channels != 3 || width == 0 || height == 0 {
-        return Err(PyValueError::new_err(format!(
+        return Err(input_error(format!(
             "texture must have shape (H, W, 3) with H, W >= 1, not ({height}, {width}, {channels})"
         )));
     }
@@ -276,11 +272,11 @@ pub(crate) fn texture_of(a: &PyReadonlyArray3<u8>) -> PyResult<Texture> {
 /// mmetric's sampling grid over a finite, non-inverted box.
 pub(crate) fn grid_of(box_min: [f64; 3], box_max: [f64; 3], grid_size: u32) -> PyResult<SamplingGrid> {
     if !(2..=MAX_GRID_SIZE).contains(&grid_size) {
-        return Err(PyValueError::new_err(format!("grid size must be from 2 to {MAX_GRID_SIZE}, not {grid_size}")));
+        return Err(input_error(format!("grid size must be from 2 to {MAX_GRID_SIZE}, not {grid_size}")));
     }
     let finite = box_min.iter().chain(&box_max).all(|v| v.is_finite());
     if !finite || (0..3).any(|k| box_min[k] > box_max[k]) {
-        return Err(PyValueError::new_err(format!(
+        return Err(input_error(format!(
             "box must be finite with box_min <= box_max, not from {box_min:?} to {box_max:?}"
         )));
     }

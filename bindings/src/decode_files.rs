@@ -10,6 +10,8 @@ use pyo3::types::PyTuple;
 
 use dynmesh_meshio::decode_files::{self, Failure, FileFormat, WriteFailure};
 
+use crate::errors::{core_error, released};
+
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(decode_to_files, m)?)
 }
@@ -40,13 +42,13 @@ fn decode_to_files<'py>(
             Python::with_gil(|py| p.call0(py).map(drop).unwrap_or_else(|e| e.write_unraisable(py, None)));
         }
     };
-    let outcomes = py.allow_threads(|| decode_files::decode_to_files(&decoder, directory.as_deref(), format, hash, &progress));
+    let outcomes = released(py, || decode_files::decode_to_files(&decoder, directory.as_deref(), format, hash, &progress))?;
     outcomes
         .into_iter()
         .map(|(i, outcome)| {
             let (digest, error) = match outcome {
                 Ok(d) => (d, None),
-                Err(Failure::Decode(e)) => (None, Some(crate::decode_error(e).into_value(py))),
+                Err(Failure::Decode(e)) => (None, Some(core_error(e).into_value(py))),
                 Err(Failure::Write(w)) => (None, Some(write_error(w).into_value(py))),
             };
             PyTuple::new(py, [i.into_pyobject(py)?.into_any(), digest.into_pyobject(py)?, error.into_pyobject(py)?])

@@ -14,6 +14,7 @@ use dynmesh_meshio::atomic_write::write_atomically;
 use dynmesh_meshio::png_image::{decode_rgb8, encode_rgb8};
 
 use crate::decode_files::io_error;
+use crate::errors::released;
 
 /// Adds the image functions to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -49,7 +50,7 @@ fn encoding_error(e: impl std::fmt::Display) -> PyErr {
 #[pyfunction]
 fn encode_png<'py>(py: Python<'py>, image: PyReadonlyArray3<'py, u8>) -> PyResult<Bound<'py, PyBytes>> {
     let (w, h, rgb) = rgb_rows(&image)?;
-    let bytes = py.allow_threads(|| encode_rgb8(w, h, &rgb)).map_err(encoding_error)?;
+    let bytes = released(py, || encode_rgb8(w, h, &rgb))?.map_err(encoding_error)?;
     Ok(PyBytes::new(py, &bytes))
 }
 
@@ -58,18 +59,18 @@ fn encode_png<'py>(py: Python<'py>, image: PyReadonlyArray3<'py, u8>) -> PyResul
 #[pyfunction]
 fn write_png(py: Python<'_>, path: PathBuf, image: PyReadonlyArray3<'_, u8>) -> PyResult<()> {
     let (w, h, rgb) = rgb_rows(&image)?;
-    py.allow_threads(|| {
+    released(py, || {
         let bytes = encode_rgb8(w, h, &rgb).map_err(encoding_error)?;
         write_atomically(&path, &[bytes]).map_err(|e| io_error(&path, e))
-    })
+    })?
 }
 
 /// The (H, W, 3) uint8 RGB pixels of a PNG file's bytes, rows from the top, or None when
 /// this reader leaves the file to Pillow (16-bit samples, animations, oversized or
 /// malformed files).
 #[pyfunction]
-fn read_png<'py>(py: Python<'py>, data: &[u8]) -> Option<Bound<'py, PyArray3<u8>>> {
-    let (w, h, rgb) = py.allow_threads(|| decode_rgb8(data))?;
+fn read_png<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Option<Bound<'py, PyArray3<u8>>>> {
+    let Some((w, h, rgb)) = released(py, || decode_rgb8(data))? else { return Ok(None) };
     let array = Array3::from_shape_vec((h as usize, w as usize, 3), rgb).expect("shape");
-    Some(array.into_pyarray(py))
+    Ok(Some(array.into_pyarray(py)))
 }

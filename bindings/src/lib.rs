@@ -6,6 +6,7 @@
 
 mod colour;
 mod decode_files;
+mod errors;
 mod image;
 mod meshio;
 mod options;
@@ -15,30 +16,23 @@ use std::ffi::CString;
 
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
-use pyo3::create_exception;
-use pyo3::exceptions::{PyUserWarning, PyValueError};
+use pyo3::exceptions::PyUserWarning;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
-use dynmesh::stream::bitstream::{FrameType, SequenceHeader};
-use dynmesh::stream::texture_payload::{TexturePayload, MAX_SIDE, MIN_SIDE, TEXTURE_CODECS};
-use dynmesh::decoder;
-use dynmesh::encoder::{FrameStats, SequenceEncoder, TextureCost};
-use dynmesh::error::DecodeError as CoreDecodeError;
-use dynmesh::geom::mesh::Mesh;
-use dynmesh::eval::metrics;
-use dynmesh::eval::sampling;
+use dynmesh::decode;
+use dynmesh::encode::{FrameStats, SequenceEncoder, TextureCost, MAX_REFERENCES};
+use dynmesh::eval::{metrics, sampling};
+use dynmesh::bitstream::{self, FrameType, SequenceHeader};
+use dynmesh::texturing::{self, TexturePayload, MAX_SIDE, MIN_SIDE, TEXTURE_CODECS};
+use dynmesh::Mesh;
 
-create_exception!(_core, DecodeError, PyValueError, "A stream that cannot be decoded; args are (message, frame or None, byte offset).");
-
-pub(crate) fn decode_error(e: CoreDecodeError) -> PyErr {
-    DecodeError::new_err((e.to_string(), e.frame, e.offset))
-}
+use errors::{core_error, guarded, input_error, released};
 
 pub(crate) fn positions_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 3]>> {
     let v = a.as_array();
     if v.ncols() != 3 {
-        return Err(PyValueError::new_err("positions must have shape (N, 3)"));
+        return Err(input_error("positions must have shape (N, 3)"));
     }
     Ok(v.rows().into_iter().map(|r| [r[0], r[1], r[2]]).collect())
 }
@@ -46,13 +40,13 @@ pub(crate) fn positions_of(a: &PyReadonlyArray2<f64>) -> PyResult<Vec<[f64; 3]>>
 pub(crate) fn faces_of(a: &PyReadonlyArray2<i64>, vertex_count: usize) -> PyResult<Vec<[u32; 3]>> {
     let v = a.as_array();
     if v.ncols() != 3 {
-        return Err(PyValueError::new_err("faces must have shape (M, 3)"));
+        return Err(input_error("faces must have shape (M, 3)"));
     }
     let mut out = Vec::with_capacity(v.nrows());
     for (i, r) in v.rows().into_iter().enumerate() {
         let f = [r[0], r[1], r[2]];
         if f.iter().any(|&x| x < 0 || x as u64 >= vertex_count as u64) {
-            return Err(PyValueError::new_err(format!("face {i} refers to a vertex that does not exist (there are {vertex_count}, numbered from 0)")));
+            return Err(input_error(format!("face {i} refers to a vertex that does not exist (there are {vertex_count}, numbered from 0)")));
         }
         out.push(f.map(|x| x as u32));
     }
@@ -140,19 +134,19 @@ impl Encoder {
     #[new]
     fn new(frame_count: u32, box_min: [f64; 3], box_max: [f64; 3], options: &Bound<'_, PyDict>) -> PyResult<Self> {
         let config = options::config_of(options)?;
-        let inner = SequenceEncoder::new(config, frame_count, box_min, box_max).map_err(|e| PyValueError::new_err(e.0))?;
+        let inner = guarded(|| SequenceEncoder::new(config, frame_count, box_min, box_max))?.map_err(core_error)?;
         Ok(Self { inner })
     }
 
     /// Makes the next frame frame `index`, which must start a group (a multiple of the
     /// intra period): its frames then get the units the sequential encoder gives them.
     fn start_group(&mut self, index: u32) -> PyResult<()> {
-        self.inner.start_group(index).map_err(|e| PyValueError::new_err(e.0))
+        guarded(|| self.inner.start_group(index))?.map_err(core_error)
     }
 
     /// The serialized sequence header.
-    fn header_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
-        PyBytes::new(py, &dynmesh::stream::bitstream::write_header(self.inner.header()))
+    fn header_bytes<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyBytes>> {
+        Ok(PyBytes::new(py, &guarded(|| bitstream::write_header(self.inner.header()))?))
     }
 
     /// Encodes the next frame; returns (unit bytes, stats dict, (positions, faces) of the
@@ -160,7 +154,8 @@ impl Encoder {
     /// decision weigh the bytes the frame's texture adds: `(continued, restarted)`, for a
     /// frame that keeps its texture group's atlas and for one that starts a group, or a
     /// callable that returns them (or None), called once the predicted candidate is built
-    /// (`SequenceEncoder::encode_textured`); None: geometry alone.
+    /// (`SequenceEncoder::encode_textured`); None: geometry alone. Raises InputError for a
+    /// mesh the encoder refuses.
     #[pyo3(signature = (positions, faces, texture_cost=None))]
     #[allow(clippy::type_complexity)]
     fn encode_frame<'py>(
@@ -175,7 +170,7 @@ impl Encoder {
         let inner = &mut self.inner;
         let texture_cost = texture_cost.map(Bound::unbind);
         let mut failed = None;
-        let out = py.allow_threads(|| {
+        let out = released(py, || {
             inner.encode_textured(&mesh, || {
                 let cost = Python::with_gil(|py| texture_cost_of(texture_cost.as_ref().map(|c| c.bind(py))));
                 cost.unwrap_or_else(|e| {
@@ -183,11 +178,11 @@ impl Encoder {
                     None
                 })
             })
-        });
+        })?;
         if let Some(e) = failed {
             return Err(e);
         }
-        let out = out.map_err(|e| PyValueError::new_err(e.0))?;
+        let out = out.map_err(core_error)?;
         let dropped = out.stats.dropped_faces;
         if dropped > 0 && dropped >= mesh.faces.len() / DROPPED_SHARE_WARNED {
             let message = format!(
@@ -209,17 +204,17 @@ fn texture_cost_of(cost: Option<&Bound<'_, PyAny>>) -> PyResult<Option<TextureCo
     let value = if cost.is_callable() { cost.call0()? } else { cost.clone() };
     let Some((continued, restarted)) = value.extract::<Option<(f64, f64)>>()? else { return Ok(None) };
     if !(continued.is_finite() && restarted.is_finite() && continued >= 0.0 && restarted >= 0.0) {
-        return Err(PyValueError::new_err("texture costs must be finite numbers of bytes, at least 0"));
+        return Err(input_error("texture costs must be finite numbers of bytes, at least 0"));
     }
     Ok(Some(TextureCost { continued, restarted }))
 }
 
 /// The core decoder of `data` (see [`Decoder::new`]), decoding `lod` iterations if given.
-pub(crate) fn open_decoder(data: &[u8], tolerant: bool, lod: Option<u32>) -> PyResult<decoder::Decoder> {
-    let open = if tolerant { decoder::Decoder::new_tolerant } else { decoder::Decoder::new };
-    let mut inner = open(data.to_vec()).map_err(decode_error)?;
+pub(crate) fn open_decoder(data: &[u8], tolerant: bool, lod: Option<u32>) -> PyResult<decode::Decoder> {
+    let open = if tolerant { decode::Decoder::new_tolerant } else { decode::Decoder::new };
+    let mut inner = guarded(|| open(data.to_vec()))?.map_err(core_error)?;
     if let Some(lod) = lod {
-        inner.set_lod(lod).map_err(PyValueError::new_err)?;
+        inner.set_lod(lod).map_err(core_error)?;
     }
     Ok(inner)
 }
@@ -227,13 +222,15 @@ pub(crate) fn open_decoder(data: &[u8], tolerant: bool, lod: Option<u32>) -> PyR
 /// A parsed stream whose frames can be decoded in any order.
 #[pyclass(module = "dynmesh._core")]
 struct Decoder {
-    inner: decoder::Decoder,
+    inner: decode::Decoder,
 }
 
 #[pymethods]
 impl Decoder {
     /// `tolerant`: open a stream with damaged frame units (only the header must be intact);
-    /// `damage()` lists them and decoding a frame that depends on one fails.
+    /// `damage()` lists them and decoding a frame that depends on one fails. Raises
+    /// DecodeError for a stream that cannot be opened, UnsupportedError for one of another
+    /// format version, InputError for a `lod` beyond the stream's.
     #[new]
     #[pyo3(signature = (data, tolerant=false, lod=None))]
     fn new(data: &[u8], tolerant: bool, lod: Option<u32>) -> PyResult<Self> {
@@ -263,7 +260,7 @@ impl Decoder {
 
     /// Per frame: type, reference, QP and byte sizes of the unit and its parts.
     fn frame_info<'py>(&self, py: Python<'py>, index: u32) -> PyResult<Bound<'py, PyDict>> {
-        let i = self.inner.frame_info(index).map_err(decode_error)?;
+        let i = guarded(|| self.inner.frame_info(index))?.map_err(core_error)?;
         let d = PyDict::new(py);
         d.set_item("type", frame_type_name(Some(i.frame_type)))?;
         d.set_item("reference", i.reference)?;
@@ -278,44 +275,45 @@ impl Decoder {
     /// Decodes frame `index`; returns (positions, faces).
     fn decode_frame<'py>(&mut self, py: Python<'py>, index: u32) -> PyResult<MeshArrays<'py>> {
         let inner = &mut self.inner;
-        let mesh = py.allow_threads(|| inner.decode_frame(index)).map_err(decode_error)?;
+        let mesh = released(py, || inner.decode_frame(index))?.map_err(core_error)?;
         Ok(arrays_of(py, mesh))
     }
 
     /// The payload of frame `index`'s texture unit and its offset in the stream, or None.
     fn texture_payload<'py>(&self, py: Python<'py>, index: u32) -> PyResult<Option<(Bound<'py, PyBytes>, u64)>> {
-        let t = self.inner.texture_payload(index).map_err(decode_error)?;
+        let t = guarded(|| self.inner.texture_payload(index))?.map_err(core_error)?;
         Ok(t.map(|(data, offset)| (PyBytes::new(py, data), offset)))
     }
 
     /// (frame index, (positions, faces)) of the base mesh of the frame decoded last, or None.
-    fn last_base<'py>(&self, py: Python<'py>) -> Option<(u32, MeshArrays<'py>)> {
-        self.inner.last_base().map(|(i, base)| (i, arrays_of(py, base)))
+    fn last_base<'py>(&self, py: Python<'py>) -> PyResult<Option<(u32, MeshArrays<'py>)>> {
+        Ok(guarded(|| self.inner.last_base())?.map(|(i, base)| (i, arrays_of(py, base))))
     }
 }
 
 /// A texture unit carrying `payload`, to be placed right after its frame's unit.
 #[pyfunction]
-fn texture_unit<'py>(py: Python<'py>, payload: &[u8]) -> Bound<'py, PyBytes> {
-    PyBytes::new(py, &dynmesh::stream::bitstream::write_texture_unit(payload))
+fn texture_unit<'py>(py: Python<'py>, payload: &[u8]) -> PyResult<Bound<'py, PyBytes>> {
+    Ok(PyBytes::new(py, &guarded(|| bitstream::write_texture_unit(payload))?))
 }
 
-/// The texture unit payload of a group (`stream::texture_payload`): codec index, atlas
+/// The texture unit payload of a group (`dynmesh::texturing::TexturePayload`): codec index, atlas
 /// width and height, UV bits, frame count, coded atlas, video.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-fn pack_texture_payload<'py>(py: Python<'py>, codec: u8, width: u16, height: u16, uv_bits: u8, frames: u32, atlas: &[u8], video: &[u8]) -> Bound<'py, PyBytes> {
+fn pack_texture_payload<'py>(py: Python<'py>, codec: u8, width: u16, height: u16, uv_bits: u8, frames: u32, atlas: &[u8], video: &[u8]) -> PyResult<Bound<'py, PyBytes>> {
     let p = TexturePayload { codec, width, height, uv_bits, frames, atlas: atlas.to_vec(), video: video.to_vec() };
-    PyBytes::new(py, &p.to_bytes())
+    Ok(PyBytes::new(py, &guarded(|| p.to_bytes())?))
 }
 
 type TextureFields<'py> = (u8, u16, u16, u8, u32, Bound<'py, PyBytes>, Bound<'py, PyBytes>);
 
-/// The fields of a texture unit payload, as `pack_texture_payload` takes them; ValueError
-/// naming what is wrong when it is damaged.
+/// The fields of a texture unit payload, as `pack_texture_payload` takes them. Raises
+/// DecodeError `(message,)` naming what is wrong when it is damaged, UnsupportedError for a
+/// payload of another version or an unknown codec.
 #[pyfunction]
 fn read_texture_payload<'py>(py: Python<'py>, data: &[u8]) -> PyResult<TextureFields<'py>> {
-    let p = TexturePayload::read(data).map_err(|e| PyValueError::new_err(e.0))?;
+    let p = guarded(|| texturing::read_texture_payload(data))?.map_err(core_error)?;
     Ok((p.codec, p.width, p.height, p.uv_bits, p.frames, PyBytes::new(py, &p.atlas), PyBytes::new(py, &p.video)))
 }
 
@@ -338,11 +336,11 @@ fn mesh_distortion(
     let a = mesh_of(&ref_positions, &ref_faces)?;
     let b = mesh_of(&dec_positions, &dec_faces)?;
     let grid = colour::grid_of(box_min, box_max, grid_size)?;
-    py.allow_threads(|| check_sampling(&a, &b, &grid, false))?;
-    let d = py.allow_threads(|| {
+    released(py, || check_sampling(&a, &b, &grid, false))??;
+    let d = released(py, || {
         let (pa, pb) = rayon::join(|| sampling::sample_grid(&a.positions, &a.faces, &grid), || sampling::sample_grid(&b.positions, &b.faces, &grid));
         metrics::distortion(&pa, &pb)
-    });
+    })?;
     check_measured(&[d.d1_mse, d.d2_mse])?;
     Ok((d.d1_mse, d.d2_mse, metrics::psnr(d.d1_mse, peak), metrics::psnr(d.d2_mse, peak)))
 }
@@ -360,13 +358,13 @@ pub(crate) fn check_sampling(reference: &Mesh, decoded: &Mesh, grid: &sampling::
     for (what, m) in [("reference", reference), ("decoded", decoded)] {
         let rays = count(&m.positions, &m.faces, grid);
         if rays == 0 {
-            return Err(PyValueError::new_err(format!(
+            return Err(input_error(format!(
                 "the {what} mesh has no surface to sample (all {} faces are degenerate or empty)",
                 m.faces.len()
             )));
         }
         if rays > MAX_SAMPLE_RAYS {
-            return Err(PyValueError::new_err(format!(
+            return Err(input_error(format!(
                 "sampling the {what} mesh would cast {rays} rays, beyond the limit of {MAX_SAMPLE_RAYS}; \
                  use a smaller grid size"
             )));
@@ -381,7 +379,7 @@ pub(crate) fn check_measured(mse: &[f64]) -> PyResult<()> {
     if mse.iter().all(|m| m.is_finite()) {
         return Ok(());
     }
-    Err(PyValueError::new_err("no distortion can be measured: one of the meshes gives no sample on the grid"))
+    Err(input_error("no distortion can be measured: one of the meshes gives no sample on the grid"))
 }
 
 /// The encoder's default options, keyed as the Python API names them.
@@ -402,7 +400,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     meshio::register(m)?;
     decode_files::register(m)?;
     image::register(m)?;
-    m.add("DecodeError", m.py().get_type::<DecodeError>())?;
-    m.add("MAX_REFERENCES", dynmesh::encoder::MAX_REFERENCES)?;
+    errors::register(m)?;
+    m.add("MAX_REFERENCES", MAX_REFERENCES)?;
     Ok(())
 }

@@ -14,6 +14,8 @@ use pyo3::types::PyBytes;
 use dynmesh_meshio::ply_write::PlyBody;
 use dynmesh_meshio::{obj, obj_write, ply, ply_write, FormatError};
 
+use crate::errors::released;
+
 create_exception!(_core, MeshFormatError, PyValueError, "A mesh file that cannot be read; args are (message, 1-based line or None).");
 
 /// Adds the mesh-file functions to the module.
@@ -53,7 +55,7 @@ type ObjRead<'py> = (MeshArrays<'py>, Vec<String>, Vec<String>, Vec<String>);
 /// Raises MeshFormatError(message, line).
 #[pyfunction]
 fn read_obj<'py>(py: Python<'py>, data: &[u8]) -> PyResult<ObjRead<'py>> {
-    let m = py.allow_threads(|| obj::read_obj(data)).map_err(format_error)?;
+    let m = released(py, || obj::read_obj(data))?.map_err(format_error)?;
     Ok((mesh_arrays(py, m.positions, m.faces, m.uv), m.mtllibs, m.materials, m.notes))
 }
 
@@ -63,7 +65,7 @@ fn read_obj<'py>(py: Python<'py>, data: &[u8]) -> PyResult<ObjRead<'py>> {
 /// uv_faces equal to faces. Raises MeshFormatError(message, line).
 #[pyfunction]
 fn read_ply<'py>(py: Python<'py>, data: &[u8]) -> PyResult<(MeshArrays<'py>, Vec<String>, Vec<String>)> {
-    let m = py.allow_threads(|| ply::read_ply(data)).map_err(format_error)?;
+    let m = released(py, || ply::read_ply(data))?.map_err(format_error)?;
     Ok((mesh_arrays(py, m.positions, m.faces, m.uv), m.comments, m.notes))
 }
 
@@ -99,7 +101,7 @@ fn contiguous<'a, T: numpy::Element + Copy>(a: &'a PyReadonlyArray2<'_, T>, widt
 fn format_rows<'py>(py: Python<'py>, values: PyReadonlyArray2<'py, f64>, prefix: &str) -> PyResult<Bound<'py, PyBytes>> {
     let width = values.as_array().ncols();
     let flat = contiguous(&values, width, "values")?;
-    joined(py, &py.allow_threads(|| obj_write::format_rows(&flat, width, prefix)))
+    joined(py, &released(py, || obj_write::format_rows(&flat, width, prefix))?)
 }
 
 /// OBJ face lines from 0-based faces (M, 3): `f 1 2 3`, or `f 1/1 2/2 3/3` with uv_faces.
@@ -108,7 +110,7 @@ fn format_rows<'py>(py: Python<'py>, values: PyReadonlyArray2<'py, f64>, prefix:
 fn format_obj_faces<'py>(py: Python<'py>, faces: PyReadonlyArray2<'py, i64>, uv_faces: Option<PyReadonlyArray2<'py, i64>>) -> PyResult<Bound<'py, PyBytes>> {
     let faces = contiguous(&faces, 3, "faces")?;
     let uv_faces = uv_faces.as_ref().map(|u| contiguous(u, 3, "uv_faces")).transpose()?;
-    let blocks = py.allow_threads(|| obj_write::format_obj_faces(&faces, uv_faces.as_deref())).map_err(PyValueError::new_err)?;
+    let blocks = released(py, || obj_write::format_obj_faces(&faces, uv_faces.as_deref()))?.map_err(PyValueError::new_err)?;
     joined(py, &blocks)
 }
 
@@ -129,6 +131,6 @@ fn ply_body<'py>(
     let faces = contiguous(&faces, 3, "faces")?;
     let texcoord = texcoord.as_ref().map(|t| contiguous(t, 6, "texcoord")).transpose()?;
     let body = PlyBody { vertex: &vertex, width, faces: &faces, texcoord: texcoord.as_deref(), ascii };
-    let blocks = py.allow_threads(|| ply_write::ply_body(&body)).map_err(PyValueError::new_err)?;
+    let blocks = released(py, || ply_write::ply_body(&body))?.map_err(PyValueError::new_err)?;
     joined(py, &blocks)
 }

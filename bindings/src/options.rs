@@ -3,16 +3,13 @@
 //! `dynmesh.defaults.ENCODER` and the command line show) and how a value sets it. The
 //! command line's flags are these keys with dashes.
 
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use pyo3::IntoPyObjectExt;
 
-use dynmesh::encoder::{self, EncoderConfig, LiftingChoice};
-use dynmesh::residual::quantize::QP_RANGE;
-use dynmesh::inter::anchor::AnchorStages;
-use dynmesh::residual::quantize::AqParams;
-use dynmesh::residual::subdivide::SchemeChoice;
+use dynmesh::encode::{self, AnchorStages, AqParams, EncoderConfig, LiftingChoice, SchemeChoice, QP_RANGE};
+
+use crate::errors::{core_error, input_error};
 
 /// An encoder configuration being built from options; adaptive quantization's switch and
 /// parameters are separate options, so they are kept apart until the end.
@@ -57,7 +54,7 @@ macro_rules! named {
             key: $key,
             get: |s, py| $name(&s.$($path).+).into_py_any(py),
             set: |s, v| {
-                s.$($path).+ = $parse(&v.extract::<String>()?).map_err(PyValueError::new_err)?;
+                s.$($path).+ = $parse(&v.extract::<String>()?).map_err(input_error)?;
                 Ok(())
             },
         }
@@ -121,11 +118,11 @@ pub fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
     for (key, value) in options.iter() {
         let key: String = key.extract()?;
         let opt = OPTIONS.iter().find(|o| o.key == key);
-        let opt = opt.ok_or_else(|| PyValueError::new_err(format!("unknown encoder option {key:?}")))?;
+        let opt = opt.ok_or_else(|| input_error(format!("unknown encoder option {key:?}")))?;
         (opt.set)(&mut s, &value)?;
     }
     s.config.aq = s.aq_on.then_some(s.aq);
-    s.config.validate().map_err(|e| PyValueError::new_err(e.0))?;
+    s.config.validate().map_err(|e| core_error(e.into()))?;
     Ok(s.config)
 }
 
@@ -141,10 +138,10 @@ pub fn default_options(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 }
 
 /// The base mesh ratio the encoder takes at `qp` when none is given
-/// ([`encoder::base_ratio_for_qp`]), so that the command line's help can state the rule.
+/// ([`encode::base_ratio_for_qp`]), so that the command line's help can state the rule.
 #[pyfunction]
 pub fn base_ratio_for_qp(qp: i32) -> f64 {
-    encoder::base_ratio_for_qp(qp)
+    encode::base_ratio_for_qp(qp)
 }
 
 /// Registers the option functions and the names of the choice options.

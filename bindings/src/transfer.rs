@@ -1,17 +1,17 @@
 //! Python binding of the texture transfer: the input frame's texture re-sampled onto the
 //! atlas of the reconstructed mesh, padded for video coding.
 
-use dynmesh::geom::mesh::Mesh;
-use dynmesh::texture::UvMesh;
+use dynmesh::texturing::{self, UvMesh};
+use dynmesh::Mesh;
 use numpy::ndarray::Array3;
 use numpy::{IntoPyArray, PyArray3, PyReadonlyArray2, PyReadonlyArray3, PyUntypedArrayMethods};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
 use crate::colour::{texture_of, valid_uv_mesh};
+use crate::errors::{input_error, released};
 
 /// Largest atlas side accepted, the stream's (keeps a typo from allocating gigabytes).
-const MAX_SIDE: usize = dynmesh::stream::texture_payload::MAX_SIDE as usize;
+const MAX_SIDE: usize = texturing::MAX_SIDE as usize;
 
 /// Adds the transfer function to the module.
 pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -23,7 +23,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// onto the atlas of `target` (its mesh and per-corner UVs) as a `width` x `height` image: every
 /// texel that a target UV triangle covers takes the colour of the closest point of the source
 /// surface; with `pad` the others are filled by push-pull. Returns (image (height, width, 3)
-/// uint8, fraction of texels covered). Raises ValueError for inconsistent arrays.
+/// uint8, fraction of texels covered). Raises InputError for inconsistent arrays.
 #[pyfunction]
 #[pyo3(signature = (
     target_positions, target_faces, target_uv, target_uv_faces,
@@ -48,10 +48,10 @@ fn transfer_texture<'py>(
 ) -> PyResult<(Bound<'py, PyArray3<u8>>, f64)> {
     for (name, side) in [("width", width), ("height", height)] {
         if !(1..=MAX_SIDE).contains(&side) {
-            return Err(PyValueError::new_err(format!("{name} must be from 1 to {MAX_SIDE}, not {side}")));
+            return Err(input_error(format!("{name} must be from 1 to {MAX_SIDE}, not {side}")));
         }
     }
-    let named = |what: &'static str| move |e: PyErr| PyValueError::new_err(format!("{what}: {}", e.value(py)));
+    let named = |what: &'static str| move |e: PyErr| input_error(format!("{what}: {}", e.value(py)));
     let target = match quick_uv_mesh(&target_positions, &target_faces, &target_uv, &target_uv_faces) {
         Some(mesh) => mesh,
         None => valid_uv_mesh(&target_positions, &target_faces, &target_uv, &target_uv_faces).map_err(named("target"))?,
@@ -61,14 +61,14 @@ fn transfer_texture<'py>(
         None => valid_uv_mesh(&source_positions, &source_faces, &source_uv, &source_uv_faces).map_err(named("source"))?,
     };
     let texture = texture_of(&source_texture).map_err(named("source texture"))?;
-    let (image, covered) = py.allow_threads(|| {
-        let mut t = dynmesh::texture::transfer::transfer_texture(&target, &source, &texture, width, height);
+    let (image, covered) = released(py, || {
+        let mut t = texturing::transfer_texture(&target, &source, &texture, width, height);
         if pad {
-            dynmesh::texture::pad::pad(&mut t.texture, &t.covered);
+            texturing::pad(&mut t.texture, &t.covered);
         }
         let covered = t.covered.iter().filter(|&&c| c).count() as f64 / t.covered.len() as f64;
         (t.texture, covered)
-    });
+    })?;
     let flat = image.rgb.into_flattened();
     Ok((Array3::from_shape_vec((height, width, 3), flat).expect("shape").into_pyarray(py), covered))
 }

@@ -6,15 +6,14 @@
 
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
-use dynmesh::stream::bitstream::MAX_SUBDIV;
-use dynmesh::residual::subdivide;
-use dynmesh::texture::uvcoder::{self, MAX_UV_BITS};
+use dynmesh::bitstream::MAX_SUBDIV;
+use dynmesh::texturing::{self, UvAtlas, MAX_UV_BITS};
 
 use crate::colour::{uv_faces_of, uv_of};
+use crate::errors::{core_error, input_error, released};
 use crate::{faces_of, positions_of};
 
 type Atlas<'py> = (Bound<'py, PyArray2<i64>>, Bound<'py, PyArray2<i64>>);
@@ -49,16 +48,17 @@ fn encode_uv<'py>(
     let faces = faces_of(&faces, vertex_bound)?;
     let uv = quantized_uv_of(uv, bits)?;
     let uv_faces = uv_faces_of(&uv_faces, faces.len(), uv.len())?;
-    let data = py.allow_threads(|| match &positions {
-        Some(p) => uvcoder::encode_uv_with_positions(p, &faces, &uv_faces, &uv, bits),
-        None => uvcoder::encode_uv(&faces, &uv_faces, &uv, bits),
-    });
+    let data = released(py, || match &positions {
+        Some(p) => texturing::encode_uv_with_positions(p, &faces, &uv_faces, &uv, bits),
+        None => texturing::encode_uv(&faces, &uv_faces, &uv, bits),
+    })?;
     Ok(PyBytes::new(py, &data))
 }
 
 /// Decodes what `encode_uv` wrote for the same `faces`, `bits` (and `positions`, which
 /// must then have `vertex_count` rows). Returns (uv_faces (M, 3), uv (K, 2)), int64, UVs
-/// numbered in order of first use. Raises ValueError for data that cannot be decoded.
+/// numbered in order of first use. Raises DecodeError `(message,)` for data that cannot be
+/// decoded, InputError for inconsistent arguments.
 #[pyfunction]
 #[pyo3(signature = (data, faces, vertex_count, bits, positions=None))]
 fn decode_uv<'py>(
@@ -73,16 +73,15 @@ fn decode_uv<'py>(
     let positions = positions.as_ref().map(positions_of).transpose()?;
     if let Some(p) = &positions {
         if p.len() != vertex_count {
-            return Err(PyValueError::new_err(format!("positions has {} rows, vertex_count is {vertex_count}", p.len())));
+            return Err(input_error(format!("positions has {} rows, vertex_count is {vertex_count}", p.len())));
         }
     }
     let faces = faces_of(&faces, vertex_count)?;
-    let decoded = py
-        .allow_threads(|| match &positions {
-            Some(p) => uvcoder::decode_uv_with_positions(data, p, &faces, bits),
-            None => uvcoder::decode_uv(data, &faces, vertex_count, bits),
-        })
-        .map_err(|e| PyValueError::new_err(e.0))?;
+    let decoded = released(py, || match &positions {
+        Some(p) => texturing::decode_uv_with_positions(data, p, &faces, bits),
+        None => texturing::decode_uv(data, &faces, vertex_count, bits),
+    })?
+    .map_err(core_error)?;
     Ok(atlas_arrays(py, decoded))
 }
 
@@ -93,7 +92,7 @@ fn canonical_uv<'py>(py: Python<'py>, uv_faces: PyReadonlyArray2<'py, i64>, uv: 
     let uv = quantized_uv_of(uv, 32)?;
     let rows = uv_faces.as_array().nrows();
     let uv_faces = uv_faces_of(&uv_faces, rows, uv.len())?;
-    Ok(atlas_arrays(py, uvcoder::canonical_uv(&uv_faces, &uv)))
+    Ok(atlas_arrays(py, released(py, || texturing::canonical_uv(&uv_faces, &uv))?))
 }
 
 /// Splits the UV triangles `uv_faces` (M, 3) over `uv` (K, 2) as `iterations` rounds of
@@ -107,12 +106,12 @@ fn subdivide_uv<'py>(
     iterations: u32,
 ) -> PyResult<FloatAtlas<'py>> {
     if iterations > MAX_SUBDIV {
-        return Err(PyValueError::new_err(format!("at most {MAX_SUBDIV} subdivision iterations")));
+        return Err(input_error(format!("at most {MAX_SUBDIV} subdivision iterations")));
     }
     let uv = uv_of(&uv)?;
     let rows = uv_faces.as_array().nrows();
     let uv_faces = uv_faces_of(&uv_faces, rows, uv.len())?;
-    let (suv, sfaces) = py.allow_threads(|| subdivide::subdivide_uv(&uv, &uv_faces, iterations));
+    let (suv, sfaces) = released(py, || texturing::subdivide_uv(&uv, &uv_faces, iterations))?;
     let n = suv.len();
     let suv = Array2::from_shape_vec((n, 2), suv.into_flattened()).expect("shape");
     Ok((suv.into_pyarray(py), index_array(py, sfaces)))
@@ -122,7 +121,7 @@ fn check_bits(bits: u32) -> PyResult<()> {
     if (1..=MAX_UV_BITS).contains(&bits) {
         Ok(())
     } else {
-        Err(PyValueError::new_err(format!("bits must be from 1 to {MAX_UV_BITS}, not {bits}")))
+        Err(input_error(format!("bits must be from 1 to {MAX_UV_BITS}, not {bits}")))
     }
 }
 
@@ -137,11 +136,11 @@ fn quantized_uv_of(uv: &Bound<'_, PyAny>, bits: u32) -> PyResult<Vec<[u32; 2]>> 
         check_uv_shape(v.ncols())?;
         v.rows().into_iter().map(|r| [r[0], r[1]]).collect()
     } else {
-        return Err(PyValueError::new_err("uv must be a (K, 2) numpy array of uint32 or int64"));
+        return Err(input_error("uv must be a (K, 2) numpy array of uint32 or int64"));
     };
     let limit = 1i64 << bits;
     if let Some(i) = rows.iter().position(|r| r.iter().any(|&c| !(0..limit).contains(&c))) {
-        return Err(PyValueError::new_err(format!("uv row {i} is outside [0, 2^{bits})")));
+        return Err(input_error(format!("uv row {i} is outside [0, 2^{bits})")));
     }
     Ok(rows.into_iter().map(|r| r.map(|c| c as u32)).collect())
 }
@@ -150,7 +149,7 @@ fn check_uv_shape(cols: usize) -> PyResult<()> {
     if cols == 2 {
         Ok(())
     } else {
-        Err(PyValueError::new_err("uv must have shape (K, 2)"))
+        Err(input_error("uv must have shape (K, 2)"))
     }
 }
 
@@ -159,6 +158,6 @@ fn index_array<const N: usize>(py: Python<'_>, rows: Vec<[u32; N]>) -> Bound<'_,
     Array2::from_shape_vec((n, N), rows.into_iter().flatten().map(i64::from).collect()).expect("shape").into_pyarray(py)
 }
 
-fn atlas_arrays(py: Python<'_>, (uv_faces, uv): uvcoder::UvAtlas) -> Atlas<'_> {
+fn atlas_arrays(py: Python<'_>, (uv_faces, uv): UvAtlas) -> Atlas<'_> {
     (index_array(py, uv_faces), index_array(py, uv))
 }

@@ -2,7 +2,7 @@
 //! sizes, one JSON object per line on stdout (`bench/bench_kernels.py` runs it and writes the
 //! table to docs/benchmarks.md):
 //!
-//!     cargo run --release -p dynmesh --example kernel_timings [-- bvh fit render]
+//!     cargo run --release -p dynmesh --features internals --example kernel_timings [-- bvh fit render]
 //!
 //! - `bvh`: a bumpy 40k-triangle sphere: `Bvh::new` (mean of 10 builds), then 160k
 //!   closest-point and 160k line queries (along the radius, t in [-30, 30]) from points at radius
@@ -18,15 +18,14 @@
 //! on a shared machine inflates the wall time.
 
 use dynmesh::eval::render::{render, View};
-use dynmesh::geom::bvh::Bvh;
-use dynmesh::geom::mesh::{normalize, scale, Mesh};
-use dynmesh::residual::displace::{fit_displacements, local_frames};
-use dynmesh::texture::{Texture, UvMesh};
+use dynmesh::internals::{fit_displacements, local_frames, normalize, scale, Bvh};
+use dynmesh::texturing::{Texture, UvMesh};
+use dynmesh::Mesh;
 use rayon::prelude::*;
 
 /// `testmesh` names its vector helpers by `crate::geom::mesh`.
 mod geom {
-    pub use dynmesh::geom::mesh;
+    pub use dynmesh::internals::mesh;
 }
 
 /// The library's test meshes (sphere, icosphere, flat subdivision, seeded random numbers),

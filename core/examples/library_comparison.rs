@@ -18,12 +18,8 @@
 
 use std::time::Instant;
 
-use dynmesh::base::decimate::decimate;
-use dynmesh::base::refit::refit_base;
-use dynmesh::geom::mesh::Mesh;
-use dynmesh::residual::subdivide::{subdivide, Scheme};
-use dynmesh::geom::bvh::Bvh;
-use dynmesh::geom::mesh::{normalize, scale};
+use dynmesh::internals::{decimate, normalize, refit_base, scale, subdivide, Bvh, Scheme};
+use dynmesh::Mesh;
 use parry3d_f64::math::Point;
 use parry3d_f64::query::PointQuery;
 use parry3d_f64::shape::TriMesh;
@@ -31,7 +27,7 @@ use rayon::prelude::*;
 
 /// `testmesh` names its vector helpers by `crate::geom::mesh`.
 mod geom {
-    pub use dynmesh::geom::mesh;
+    pub use dynmesh::internals::mesh;
 }
 
 #[allow(dead_code)]

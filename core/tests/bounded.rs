@@ -2,14 +2,14 @@
 
 use std::time::Instant;
 
-use dynmesh::encoder::{EncoderConfig, SequenceEncoder};
-use dynmesh::geom::mesh::Mesh;
+use dynmesh::encode::{EncoderConfig, SequenceEncoder};
+use dynmesh::{Error, Mesh};
 
 fn encode_error(m: &Mesh) -> String {
     let (lo, hi) = m.bounds().unwrap();
     let mut enc = SequenceEncoder::new(EncoderConfig::default(), 1, lo, hi.map(|c| c + 1.0)).unwrap();
     let t = Instant::now();
-    let e = enc.encode(m).expect_err("refused").0;
+    let Err(Error::Input(e)) = enc.encode(m) else { panic!("not refused as bad input") };
     assert!(t.elapsed().as_secs_f64() < 10.0, "took {:?}", t.elapsed());
     e
 }

@@ -20,10 +20,10 @@ use std::sync::mpsc::{sync_channel, SyncSender};
 
 use rayon::prelude::*;
 
-use dynmesh::decoder::Decoder;
-use dynmesh::error::DecodeError;
-use dynmesh::geom::mesh::Mesh;
-use dynmesh::stream::bitstream::FrameType;
+use dynmesh::decode::Decoder;
+use dynmesh::bitstream::FrameType;
+use dynmesh::Error as DecodeError;
+use dynmesh::Mesh;
 
 use crate::atomic_write::write_atomically;
 use crate::blocks::text_blocks;

@@ -4,7 +4,7 @@
 
 use sha2::{Digest, Sha256};
 
-use dynmesh::geom::mesh::Mesh;
+use dynmesh::Mesh;
 
 /// The lowercase hex SHA-256 of `mesh`'s positions as little-endian float64, then its faces
 /// as little-endian uint32: `dynmesh.conformance.frame_hash`.

@@ -131,6 +131,7 @@ impl Quadric {
     /// Where to put the vertex that replaces edge `ab`, and its error: the point of
     /// [`Quadric::optimal_point_near`] when there is one, else the best of the midpoint and
     /// the two ends (the midpoint on ties, as it makes better shaped faces).
+    #[cfg(test)]
     pub fn best_point_on_edge(&self, a: [f64; 3], b: [f64; 3]) -> ([f64; 3], f64) {
         if let Some(p) = self.optimal_point_near(a, b) {
             return (p, self.error(p));
@@ -150,11 +151,6 @@ impl Quadric {
     /// [`Quadric::from_triangle`] stands for, so that error / area is a mean squared distance.
     pub fn area(&self) -> f64 {
         self.m[0] + self.m[4] + self.m[7]
-    }
-
-    /// The ten stored coefficients, `a00 a01 a02 a03 a11 a12 a13 a22 a23 a33`.
-    pub fn coefficients(&self) -> [f64; 10] {
-        self.m
     }
 }
 

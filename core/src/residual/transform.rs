@@ -9,8 +9,6 @@ use crate::residual::subdivide::Subdivision;
 
 /// Weight of each parent in the prediction of a new vertex.
 pub const PREDICT_WEIGHT: f64 = 0.5;
-/// Share of a residual that each parent receives in the update step of [`Lifting::constant`].
-pub const UPDATE_WEIGHT: f64 = 0.125;
 /// The update weights of [`Lifting::per_valence`], coarsest level first, as (numerator,
 /// denominator): the MPEG test model's values, 63/80, 21/20, 7/5, then 1 for any further level.
 pub const VALENCE_UPDATE: [(u8, u8); 4] = [(63, 80), (21, 20), (7, 5), (1, 1)];

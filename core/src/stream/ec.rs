@@ -304,6 +304,7 @@ impl<'a> Decoder<'a> {
     }
 
     /// Bytes consumed so far (a bound on the work a caller may still justify).
+    #[cfg(test)]
     pub fn position(&self) -> usize {
         self.pos
     }

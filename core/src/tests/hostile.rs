@@ -1,10 +1,10 @@
 //! Streams crafted past the CRC: the inner decoders must fail cleanly, never panic, and
 //! never produce more than the bounded output.
 
-use dynmesh::stream::bitstream::{self, FrameType};
-use dynmesh::decoder::Decoder;
-use dynmesh::encoder::{EncoderConfig, SequenceEncoder};
-use dynmesh::geom::mesh::Mesh;
+use crate::stream::bitstream::{self, FrameType};
+use crate::decoder::Decoder;
+use crate::encoder::{EncoderConfig, SequenceEncoder};
+use crate::geom::mesh::Mesh;
 
 fn ball() -> Mesh {
     ball_of(2)
@@ -14,8 +14,8 @@ fn ball() -> Mesh {
 fn ball_of(levels: u32) -> Mesh {
     let p = vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
     let f = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
-    let s = dynmesh::residual::subdivide::subdivide(&p, &f, &vec![dynmesh::residual::subdivide::Scheme::Midpoint; levels as usize]);
-    let pos = s.positions.iter().map(|&q| dynmesh::geom::mesh::normalize(q)).collect();
+    let s = crate::residual::subdivide::subdivide(&p, &f, &vec![crate::residual::subdivide::Scheme::Midpoint; levels as usize]);
+    let pos = s.positions.iter().map(|&q| crate::geom::mesh::normalize(q)).collect();
     Mesh::new(pos, s.faces)
 }
 
@@ -52,7 +52,7 @@ fn fix_crcs(data: &mut [u8]) -> bool {
     true
 }
 
-fn decode_all(data: &[u8]) -> Result<usize, dynmesh::error::DecodeError> {
+fn decode_all(data: &[u8]) -> Result<usize, crate::error::DecodeError> {
     let mut d = Decoder::new(data.to_vec())?;
     let mut vertices = 0;
     for i in 0..d.frame_count() {
@@ -92,7 +92,7 @@ fn payload_flips_behind_a_valid_crc_never_panic() {
             continue;
         }
         match decode_all(&d) {
-            Ok(v) => assert!(v <= dynmesh::model::MAX_OUTPUT_FACES),
+            Ok(v) => assert!(v <= crate::model::MAX_OUTPUT_FACES),
             Err(e) => {
                 errors += 1;
                 assert!(e.to_string().contains("byte offset"));
@@ -122,8 +122,8 @@ fn a_header_asking_for_more_subdivision_than_the_frame_justifies_is_refused() {
     let cfg = EncoderConfig { subdiv_iterations: 0, base_ratio: Some(1.0), ..EncoderConfig::default() };
     let mut s = stream_of(&cfg, &[ball_of(4)]);
     let (h, start) = bitstream::read_header(&s).unwrap();
-    let schemes = vec![dynmesh::residual::subdivide::Scheme::Midpoint; bitstream::MAX_SUBDIV as usize];
-    let lifting = dynmesh::residual::transform::Lifting::per_valence(schemes.len());
+    let schemes = vec![crate::residual::subdivide::Scheme::Midpoint; bitstream::MAX_SUBDIV as usize];
+    let lifting = crate::residual::transform::Lifting::per_valence(schemes.len());
     let header = bitstream::write_header(&bitstream::SequenceHeader { schemes, lifting, ..h });
     s.splice(..start, header);
     let e = decode_all(&s).unwrap_err();

@@ -6,9 +6,9 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-use dynmesh::decoder::Decoder;
-use dynmesh::geom::mesh::Mesh;
-use dynmesh::residual::quantize::lod_scales;
+use crate::decoder::Decoder;
+use crate::geom::mesh::Mesh;
+use crate::residual::quantize::lod_scales;
 use sha2::{Digest, Sha256};
 
 fn vectors() -> PathBuf {

@@ -1,17 +1,17 @@
 //! Damaged streams opened with `Decoder::new_tolerant`: every frame whose reference chain
 //! is intact decodes exactly as from the clean stream; the others fail, named.
 
-use dynmesh::stream::bitstream::{self, FrameType};
-use dynmesh::decoder::Decoder;
-use dynmesh::encoder::{EncoderConfig, SequenceEncoder};
-use dynmesh::geom::mesh::Mesh;
+use crate::stream::bitstream::{self, FrameType};
+use crate::decoder::Decoder;
+use crate::encoder::{EncoderConfig, SequenceEncoder};
+use crate::geom::mesh::Mesh;
 
 /// An octahedron pushed onto the unit sphere after one midpoint subdivision, moving along x.
 fn frames(n: usize) -> Vec<Mesh> {
     let p = vec![[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, -1.0, 0.0], [0.0, 0.0, 1.0], [0.0, 0.0, -1.0]];
     let f = vec![[0, 2, 4], [2, 1, 4], [1, 3, 4], [3, 0, 4], [2, 0, 5], [1, 2, 5], [3, 1, 5], [0, 3, 5]];
-    let s = dynmesh::residual::subdivide::subdivide(&p, &f, &[dynmesh::residual::subdivide::Scheme::Midpoint; 2]);
-    let ball: Vec<[f64; 3]> = s.positions.iter().map(|&q| dynmesh::geom::mesh::normalize(q)).collect();
+    let s = crate::residual::subdivide::subdivide(&p, &f, &[crate::residual::subdivide::Scheme::Midpoint; 2]);
+    let ball: Vec<[f64; 3]> = s.positions.iter().map(|&q| crate::geom::mesh::normalize(q)).collect();
     (0..n).map(|t| Mesh::new(ball.iter().map(|q| [q[0] * 0.8 + 0.02 * t as f64, q[1] * 0.9, q[2]]).collect(), s.faces.clone())).collect()
 }
 
