@@ -4,6 +4,23 @@
 >>> data = dynmesh.encode(frames, qp=28)          # frames: Mesh or (positions, faces)
 >>> decoded = list(dynmesh.decode(data))
 >>> dynmesh.metrics(frames, decoded)["d1_psnr"]
+
+Errors are exception classes by kind (also in ``dynmesh.api``):
+
+- ``InputError`` (a ValueError): input the codec's core refuses: an encoder option out of
+  range, a level of detail beyond the stream's, a malformed mesh (a face index out of range, a
+  coordinate that is not finite, no face with an area) given to a core function. (``encode``
+  reports a frame the core refuses as a ValueError that names the frame.)
+- ``DecodeError`` (a ValueError): a stream that cannot be decoded (truncated, corrupted);
+  ``frame`` (None for the sequence header) and ``offset`` (the byte offset in the stream)
+  say where decoding stopped.
+- ``UnsupportedError`` (a ValueError): a well-formed stream this build does not read, such as
+  one of another format version.
+- ``InternalError`` (a RuntimeError): a bug in dynmesh; the message says so and where. Please
+  report it.
+
+Other mistakes (a wrong type, an unreadable file) raise Python's own exceptions (TypeError,
+OSError, ``MeshError`` for a malformed mesh file).
 """
 
 from __future__ import annotations
@@ -16,6 +33,7 @@ from ._lazy import lazy_names as _lazy_names
 _HOMES = {
     "DEFAULTS": "api", "DecodeError": "api", "EncodeResult": "api", "decode": "api", "encode": "api",
     "encode_frames": "api", "info": "api", "metrics": "api",
+    "InputError": "api", "InternalError": "api", "UnsupportedError": "api",
     "MeshError": "io", "read_mesh": "io", "write_mesh": "io",
     "Mesh": "mesh",
     "FrameType": "defaults",

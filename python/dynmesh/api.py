@@ -1,4 +1,13 @@
-"""The Python surface of the codec: plain numpy arrays in, bytes out, and back."""
+"""The Python surface of the codec: plain numpy arrays in, bytes out, and back.
+
+Exceptions, by kind (``dynmesh`` exports them too): ``InputError`` (a ValueError) for input
+the core refuses, such as an encoder option out of range or a malformed mesh given to a core
+function (``encode_frames`` reports a refused frame as a ValueError naming it); ``DecodeError`` (a
+ValueError, with ``frame`` and ``offset``) for a stream that cannot be decoded;
+``UnsupportedError`` (a ValueError) for a well-formed stream this build does not read, such as
+one of another format version; ``InternalError`` (a RuntimeError) for a bug in dynmesh. Checks
+made in Python (of ``texture``, ``jobs``, the frame count) raise plain ValueError.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from . import _core
+from ._core import InputError, InternalError, UnsupportedError
 from . import texture as _texture
 from .defaults import FrameType
 from .io.meshio import _atomic_write
@@ -97,7 +107,8 @@ def encode_frames(
     script that calls this needs the ``if __name__ == "__main__":`` guard.
     ``on_frame(index, stats)`` is called after each frame; ``stats["type"]`` is a ``FrameType``.
     Reconstructions of a textured stream carry their UVs and decoded texture image.
-    Raises ValueError for an invalid mesh or option, naming the frame.
+    Raises ValueError for an invalid mesh or option, naming the frame (InputError for an
+    option the core refuses).
     """
     opts, texture_options = _split_options(options)
     count, lo, hi, meshes, textured = _sequence_of(frames, texture, sequence)
@@ -147,7 +158,8 @@ def _open(data: bytes, tolerant: bool = False, lod: int | None = None) -> _core.
 def decode(data: bytes, lod: int | None = None) -> Iterator[Mesh]:
     """Yields the decoded frames of a stream, in order; frames of a textured stream carry
     their UVs and texture image. ``lod`` stops after that many subdivision iterations
-    (default: all of the stream's). Raises DecodeError, or ValueError for a bad ``lod``."""
+    (default: all of the stream's). Raises DecodeError, UnsupportedError for a stream of
+    another format version, or ValueError (InputError) for a bad ``lod``."""
     for _, mesh in _decode_frames(_open(data, lod=lod), tolerant=False):
         if isinstance(mesh, DecodeError):
             raise mesh

@@ -24,6 +24,14 @@ class CliError(Exception):
     """An error to report to the user, without a traceback."""
 
 
+#: Exit status of an internal error (``dynmesh.InternalError``, a bug in dynmesh): sysexits'
+#: EX_SOFTWARE, apart from the user's errors (``EXIT_ERROR``), so that a script can tell them.
+EXIT_INTERNAL = 70
+#: What every command's --help adds to ``EXIT_STATUS_HELP`` (README.md, "Exit status", says it too).
+INTERNAL_STATUS_HELP = ("Exit status 70 for an internal error, a bug in dynmesh: the one-line message says "
+                        "\"internal error\" and asks you to report it.")
+
+
 def _progress(a, total: int, desc: str, quiet: bool | None = None, **kwargs) -> Progress:
     """Progress of command ``a`` on stderr: a bar on a terminal, one line per frame
     otherwise, nothing with -q (``quiet`` overrides)."""
@@ -503,7 +511,7 @@ def _read_bytes(path: str) -> bytes:
 def parser() -> argparse.ArgumentParser:
     d = ENCODER
     top = Parser(prog="dynmesh", description="Codec for dynamic 3D meshes with time-varying topology.",
-                  epilog=EXIT_STATUS_HELP)
+                  epilog=f"{EXIT_STATUS_HELP} {INTERNAL_STATUS_HELP}")
     sub = top.add_subparsers(dest="command", required=True, metavar="COMMAND")
 
     p = sub.add_parser("encode", help="encode a mesh sequence", description="Encode a mesh sequence into a .dmsh stream.")
@@ -673,7 +681,7 @@ def parser() -> argparse.ArgumentParser:
     common_args(p)
     p.set_defaults(run=cmd_eval)
     for p in sub.choices.values():
-        p.epilog = EXIT_STATUS_HELP
+        p.epilog = f"{EXIT_STATUS_HELP} {INTERNAL_STATUS_HELP}"
     return top
 
 
@@ -690,6 +698,14 @@ def _reported_errors() -> tuple[type[BaseException], ...]:
     the command used workers (a module it did not import raised nothing)."""
     parallel = sys.modules.get(f"{__package__}.parallel")
     return (CliError, ValueError, OSError, MemoryError) + ((parallel.WorkerError,) if parallel else ())
+
+
+def _internal_errors() -> tuple[type[BaseException], ...]:
+    """The core's InternalError (a bug in dynmesh), reported in one line with its own exit
+    status (``EXIT_INTERNAL``); nothing when the command did not import the core (which then
+    raised nothing)."""
+    core = sys.modules.get(f"{__package__}._core")
+    return (core.InternalError,) if core else ()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -720,6 +736,9 @@ def _main(argv: list[str] | None) -> int:
     except _reported_errors() as e:
         print(f"dynmesh {args.command}: error: {_message(e)}", file=sys.stderr)
         return EXIT_ERROR
+    except _internal_errors() as e:
+        print(f"dynmesh {args.command}: {_message(e)}", file=sys.stderr)
+        return EXIT_INTERNAL
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
