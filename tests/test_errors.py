@@ -100,10 +100,27 @@ def test_options_and_arguments_out_of_range_are_input_errors(sphere, small_strea
         _core.subdivide_uv(np.zeros((3, 2)), np.array([[0, 1, 2]]), 99)
 
 
-def test_encode_still_names_the_frame_it_refuses(sphere):
+def test_encode_names_the_frame_it_refuses_and_keeps_the_class(sphere):
     flat = dynmesh.Mesh(np.zeros_like(sphere.positions), sphere.faces)
-    with pytest.raises(ValueError, match="frame 1: .*no area"):
+    with pytest.raises(dynmesh.InputError, match="^frame 1: .*no area"):
         dynmesh.encode([sphere, flat], subdiv=1)
+
+
+def test_a_textured_stream_of_an_unknown_texture_codec_is_unsupported_through_decode():
+    m = uv_sphere(8, 12)
+    uv = (m.positions[:, :2] + 1) / 2
+    image = np.random.default_rng(1).integers(0, 256, (32, 32, 3), dtype=np.uint8)
+    frames = [dynmesh.Mesh(m.positions, m.faces, uvs=uv, uv_faces=m.faces.copy(), image=image)] * 2
+    data = bytearray(dynmesh.encode(frames, subdiv=1, texture_size=32))
+    payload, at = _core.Decoder(bytes(data)).texture_payload(0)
+    # The unit's codec byte set to one this build does not know, its CRC made to hold again.
+    data[at + 1] = len(_core.TEXTURE_CODECS)
+    end = at + len(payload)
+    data[end:end + 4] = zlib.crc32(bytes(data[at - 5:end])).to_bytes(4, "little")
+    with pytest.raises(dynmesh.UnsupportedError, match="^frame 0: .*unknown texture codec"):
+        list(dynmesh.decode(bytes(data)))
+    (_, unsupported), = [x for x in dynmesh.api.decode_each(bytes(data)) if x[0] == 0]
+    assert isinstance(unsupported, dynmesh.UnsupportedError)
 
 
 def test_a_truncated_stream_is_a_decode_error_with_frame_and_offset(small_stream):

@@ -9,13 +9,12 @@ Errors are exception classes by kind (also in ``dynmesh.api``):
 
 - ``InputError`` (a ValueError): input the codec's core refuses: an encoder option out of
   range, a level of detail beyond the stream's, a malformed mesh (a face index out of range, a
-  coordinate that is not finite, no face with an area) given to a core function. (``encode``
-  reports a frame the core refuses as a ValueError that names the frame.)
+  coordinate that is not finite, no face with an area); ``encode`` names the frame it refused.
 - ``DecodeError`` (a ValueError): a stream that cannot be decoded (truncated, corrupted);
   ``frame`` (None for the sequence header) and ``offset`` (the byte offset in the stream)
   say where decoding stopped.
 - ``UnsupportedError`` (a ValueError): a well-formed stream this build does not read, such as
-  one of another format version.
+  one of another format version or with a texture codec it does not know.
 - ``InternalError`` (a RuntimeError): a bug in dynmesh; the message says so and where. Please
   report it.
 

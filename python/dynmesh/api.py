@@ -2,10 +2,10 @@
 
 Exceptions, by kind (``dynmesh`` exports them too): ``InputError`` (a ValueError) for input
 the core refuses, such as an encoder option out of range or a malformed mesh given to a core
-function (``encode_frames`` reports a refused frame as a ValueError naming it); ``DecodeError`` (a
+function (``encode_frames`` names the frame it refused); ``DecodeError`` (a
 ValueError, with ``frame`` and ``offset``) for a stream that cannot be decoded;
 ``UnsupportedError`` (a ValueError) for a well-formed stream this build does not read, such as
-one of another format version; ``InternalError`` (a RuntimeError) for a bug in dynmesh. Checks
+one of another format version or texture codec; ``InternalError`` (a RuntimeError) for a bug in dynmesh. Checks
 made in Python (of ``texture``, ``jobs``, the frame count) raise plain ValueError.
 """
 
@@ -23,6 +23,7 @@ from . import texture as _texture
 from .defaults import FrameType
 from .io.meshio import _atomic_write
 from .mesh import Mesh
+from .errors import with_frame
 from .encoding import (DEFAULTS, EncodeResult, _encoder, _given_texture, _image_of, _peek, _split_options,
                        encode_units, texture_encoder)
 
@@ -159,21 +160,23 @@ def decode(data: bytes, lod: int | None = None) -> Iterator[Mesh]:
     """Yields the decoded frames of a stream, in order; frames of a textured stream carry
     their UVs and texture image. ``lod`` stops after that many subdivision iterations
     (default: all of the stream's). Raises DecodeError, UnsupportedError for a stream of
-    another format version, or ValueError (InputError) for a bad ``lod``."""
+    another format version or a texture codec this build does not read, or ValueError
+    (InputError) for a bad ``lod``."""
     for _, mesh in _decode_frames(_open(data, lod=lod), tolerant=False):
-        if isinstance(mesh, DecodeError):
+        if isinstance(mesh, (DecodeError, UnsupportedError)):
             raise mesh
         yield mesh
 
 
 def decode_each(data: bytes, lod: int | None = None) -> Iterator[tuple[int, Mesh | DecodeError]]:
     """Yields ``(index, Mesh)`` for every frame of a possibly damaged stream whose reference
-    chain (and texture unit) is intact, and ``(index, DecodeError)`` for the others, in
-    order. Only the sequence header must be intact (else DecodeError is raised)."""
+    chain (and texture unit) is intact, and ``(index, DecodeError)`` for the others (an
+    ``UnsupportedError`` for a texture unit of a codec this build does not read), in order.
+    Only the sequence header must be intact (else DecodeError is raised)."""
     return _decode_frames(_open(data, tolerant=True, lod=lod), tolerant=True)
 
 
-def _decode_frames(dec: _core.Decoder, tolerant: bool) -> Iterator[tuple[int, Mesh | DecodeError]]:
+def _decode_frames(dec: _core.Decoder, tolerant: bool) -> Iterator[tuple[int, Mesh | DecodeError | UnsupportedError]]:
     tex = _texture.TextureDecoder(dec, dec.lod, tolerant)
     textured = tex.textured()
     for i in range(dec.frame_count):
@@ -186,6 +189,9 @@ def _decode_frames(dec: _core.Decoder, tolerant: bool) -> Iterator[tuple[int, Me
         if textured:
             try:
                 mesh.uvs, mesh.uv_faces, mesh.image = tex.texture_of(i)
+            except UnsupportedError as e:  # a texture codec this build does not read
+                yield i, e
+                continue
             except ValueError as e:
                 yield i, DecodeError(str(e), i, 0)
                 continue
@@ -255,7 +261,7 @@ def metrics(reference, decoded, *, peak: float | None = None, grid_size: int = 1
         try:
             frames.append(_frame_metrics(r, d, textured, lo, hi, peak, grid_size))
         except ValueError as e:
-            raise ValueError(f"frame {i}: {e}") from None
+            raise with_frame(e, i) from None
     keys = ("d1_psnr", "d2_psnr") + (("y_psnr", "cb_psnr", "cr_psnr") if textured else ())
     mean = {k: float(np.mean([f[k] for f in frames])) for k in keys}
     return {"peak": peak, "frames": frames, **mean}

@@ -13,6 +13,7 @@ import numpy as np
 from . import _core
 from . import texture as _texture
 from .defaults import ENCODER, FrameType
+from .errors import with_frame
 from .io import read_image
 from .mesh import Mesh
 
@@ -98,7 +99,7 @@ def encode_units(enc: _core.Encoder, tex: _texture.TextureEncoder | None, meshes
                 stats["type"] = FrameType(stats["type"])
                 image = _image_of(m) if tex else None
             except ValueError as e:
-                raise ValueError(f"frame {i}: {e}") from None
+                raise with_frame(e, i) from None
             if tex:  # its errors name their frame
                 tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
             units.append(unit)

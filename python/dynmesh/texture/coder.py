@@ -22,6 +22,7 @@ import numpy as np
 
 from .. import _core
 from ..defaults import TEXTURE, FrameType, texture_qp_for
+from ..errors import with_frame
 from ..mesh import Mesh
 from . import atlas, video
 
@@ -262,7 +263,7 @@ class TextureEncoder:
                 self._measure(g, texture)
             g.pending = texture
         except ValueError as e:
-            raise ValueError(f"frame {self._first_frame + index}: {e}") from None
+            raise with_frame(e, self._first_frame + index) from None
 
     def _to_video(self, index: int) -> None:
         """The frame's texture into its group's video (a task of its own, which ``cost``
@@ -271,7 +272,7 @@ class TextureEncoder:
         try:
             g.video.add(g.pending)
         except ValueError as e:
-            raise ValueError(f"frame {self._first_frame + index}: {e}") from None
+            raise with_frame(e, self._first_frame + index) from None
         g.pending = None
 
     def _measure(self, g: _Group, texture: np.ndarray) -> None:
@@ -363,7 +364,7 @@ class TextureDecoder:
         try:
             header = unpack_group(payload)
         except ValueError as e:
-            raise ValueError(f"frame {first}: {e} (texture unit at byte {offset})") from None
+            raise with_frame(e, first, f" (texture unit at byte {offset})") from None
         if header.frames > length or (header.frames != length and not self._tolerant):
             raise ValueError(f"frame {first}: texture unit claims {header.frames} frames, its group has {length}")
         # Every frame of the group has the intra frame's base connectivity, but only the
