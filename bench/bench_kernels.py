@@ -34,7 +34,7 @@ def main() -> None:
     ap.add_argument("--print-only", action="store_true", help="do not write docs/benchmarks.md")
     a = ap.parse_args()
     load = os.getloadavg()[0]
-    rows = median_rows([example_lines("kernel_timings", a.only) for _ in range(a.repeat)], ["wall_ms", "cpu_ms"])
+    rows = median_rows([example_lines("kernel_timings", a.only, features=("internals",)) for _ in range(a.repeat)], ["wall_ms", "cpu_ms"])
     table = markdown_table(rows, COLUMNS)
     print(table)
     if not a.print_only:

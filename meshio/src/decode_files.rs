@@ -22,7 +22,7 @@ use rayon::prelude::*;
 
 use dynmesh::decode::Decoder;
 use dynmesh::bitstream::FrameType;
-use dynmesh::Error as DecodeError;
+use dynmesh::Error;
 use dynmesh::Mesh;
 
 use crate::atomic_write::write_atomically;
@@ -84,7 +84,7 @@ impl fmt::Display for WriteFailure {
 #[derive(Debug)]
 pub enum Failure {
     /// The frame could not be decoded.
-    Decode(DecodeError),
+    Decode(Error),
     /// The frame was decoded but its file could not be written.
     Write(WriteFailure),
 }

@@ -54,7 +54,7 @@ pub struct FrameStats {
     pub output_vertices: usize,
     pub output_faces: usize,
     /// Input faces left out for having no area or repeating another face
-    /// ([`crate::geom::weld`]).
+    /// (welding, `geom::weld`).
     pub dropped_faces: usize,
     /// Whether the input had the previous input's connectivity.
     pub same_topology: bool,
@@ -158,7 +158,7 @@ pub struct SequenceEncoder {
 /// and a video frame predicted from the previous one); an intra frame, and a predicted one
 /// whose base changed (refreshed, or moved from an older reference), starts a new group
 /// (a new atlas, an intra video frame). The texture stage measures both as it goes
-/// ([`SequenceEncoder::encode_textured`]) so that the decision weighs them with the
+/// (`encode_textured`) so that the decision weighs them with the
 /// geometry's bytes: texture is most of a textured stream.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TextureCost {

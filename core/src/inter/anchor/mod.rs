@@ -20,8 +20,7 @@ pub mod rigid;
 use crate::geom::bvh::Bvh;
 use crate::geom::mesh::{add, sub, Mesh};
 use coarse::NearestVertex;
-pub use folds::FoldStats;
-pub use rigid::{PartMotions, Rigid};
+pub use rigid::PartMotions;
 
 /// The stages that make the anchor mesh: the paper's ablation switches, and our variant.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -78,17 +77,11 @@ pub struct ReferenceBase<'a> {
     pub motions: Option<&'a PartMotions>,
 }
 
-#[derive(Debug, Clone, Default)]
-pub struct AnchorStats {
-    pub folds: FoldStats,
-}
-
 pub struct Anchor {
     /// One position per reference vertex, in the input's units.
     pub positions: Vec<[f64; 3]>,
     /// The rigid motion of each part of the reference (`rigid::parts`), with `rigid_align`.
     pub motions: Option<PartMotions>,
-    pub stats: AnchorStats,
 }
 
 /// The anchor mesh of `reference` on `input` (same units), whose faces are the reference's.
@@ -112,12 +105,14 @@ pub fn anchor_mesh(reference: &ReferenceBase, input: &Mesh, input_bvh: &Bvh, par
         start.positions = std::mem::take(&mut a.positions);
     }
     let mut positions = matched(&start, input, input_bvh, params.stages);
-    let folds = if params.repair_folds { folds::repair_folds(&start, &mut positions, input_bvh) } else { FoldStats::default() };
+    if params.repair_folds {
+        folds::repair_folds(&start, &mut positions, input_bvh);
+    }
     for (v, (p, &o)) in positions.iter_mut().zip(&offsets).enumerate() {
         let o = aligned.as_ref().map_or(o, |a| a.motions.of(v).rotate(o));
         *p = add(*p, o);
     }
-    Anchor { positions, motions: aligned.map(|a| a.motions), stats: AnchorStats { folds } }
+    Anchor { positions, motions: aligned.map(|a| a.motions) }
 }
 
 /// The stages' positions for the vertices of `reference` (moved as far as it already is).
