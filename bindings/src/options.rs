@@ -22,7 +22,7 @@ struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         let config = EncoderConfig::default();
-        Self { aq_on: config.aq.is_some(), aq: config.aq.unwrap_or_default(), config }
+        Self { aq_on: config.format.aq.is_some(), aq: config.format.aq.unwrap_or_default(), config }
     }
 }
 
@@ -62,24 +62,24 @@ macro_rules! named {
 }
 
 const OPTIONS: &[Opt] = &[
-    field!("qp", config.qp),
-    field!("base_ratio", config.base_ratio),
-    field!("subdiv", config.subdiv_iterations),
-    named!("scheme", config.scheme, SchemeChoice::spec, SchemeChoice::parse),
-    field!("bits", config.bits),
-    field!("base_bits", config.base_bits),
-    field!("normal_only", config.normal_only),
-    field!("intra_period", config.intra_period),
-    named!("inter", config.inter, inter_name, inter_of),
-    field!("rd_slope", config.rd_slope_db),
-    field!("refit", config.refit),
-    field!("fold_repair", config.fold_repair),
-    field!("rigid_align", config.rigid_align),
-    field!("motion_parts", config.motion_parts),
-    field!("refresh", config.refresh),
-    field!("references", config.references),
-    field!("intra_reference", config.intra_reference),
-    named!("lifting", config.lifting, |l: &LiftingChoice| l.name(), lifting_of),
+    field!("qp", config.format.qp),
+    field!("base_ratio", config.search.base_ratio),
+    field!("subdiv", config.format.subdiv_iterations),
+    named!("scheme", config.format.scheme, SchemeChoice::spec, SchemeChoice::parse),
+    field!("bits", config.format.bits),
+    field!("base_bits", config.format.base_bits),
+    field!("normal_only", config.format.normal_only),
+    field!("intra_period", config.search.intra_period),
+    named!("inter", config.search.inter, inter_name, inter_of),
+    field!("rd_slope", config.search.rd_slope_db),
+    field!("refit", config.search.refit),
+    field!("fold_repair", config.search.fold_repair),
+    field!("rigid_align", config.search.rigid_align),
+    field!("motion_parts", config.search.motion_parts),
+    field!("refresh", config.search.refresh),
+    field!("references", config.search.references),
+    field!("intra_reference", config.search.intra_reference),
+    named!("lifting", config.format.lifting, |l: &LiftingChoice| l.name(), lifting_of),
     field!("aq", aq_on),
     field!("aq_alpha", aq.alpha),
     field!("aq_delta", aq.delta),
@@ -121,7 +121,7 @@ pub fn config_of(options: &Bound<'_, PyDict>) -> PyResult<EncoderConfig> {
         let opt = opt.ok_or_else(|| input_error(format!("unknown encoder option {key:?}")))?;
         (opt.set)(&mut s, &value)?;
     }
-    s.config.aq = s.aq_on.then_some(s.aq);
+    s.config.format.aq = s.aq_on.then_some(s.aq);
     s.config.validate().map_err(|e| core_error(e.into()))?;
     Ok(s.config)
 }

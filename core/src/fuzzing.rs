@@ -205,11 +205,11 @@ pub fn seeds() -> Vec<(&'static str, Vec<u8>)> {
 
 /// A two-frame stream (intra, predicted) of the refined octahedron, CRC flag set.
 fn stream_seed() -> Vec<u8> {
-    use crate::encoder::{EncoderConfig, SequenceEncoder};
+    use crate::encoder::{EncoderConfig, FormatParams, SequenceEncoder};
     let (p, f) = context_mesh(1);
     let world: Vec<[f64; 3]> = p.iter().map(|q| q.map(|c| c as f64 / 511.0)).collect();
     let moved: Vec<[f64; 3]> = world.iter().map(|q| [q[0] * 0.95 + 0.02, q[1], q[2]]).collect();
-    let cfg = EncoderConfig { subdiv_iterations: 1, ..Default::default() };
+    let cfg = EncoderConfig { format: FormatParams { subdiv_iterations: 1, ..Default::default() }, ..Default::default() };
     let mut enc = SequenceEncoder::new(cfg, 2, [0.0; 3], [1.0; 3]).expect("valid configuration");
     let mut out = vec![1];
     out.extend(bitstream::write_header(enc.header()));

@@ -154,14 +154,14 @@ fn classified(e: DecodeError, other_version: bool) -> Error {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::encode::{EncoderConfig, SequenceEncoder};
+    use crate::encode::{EncoderConfig, FormatParams, SequenceEncoder};
     use crate::bitstream::write_header;
     use crate::geom::testmesh;
 
     fn stream() -> Vec<u8> {
         let (positions, faces) = testmesh::icosphere(2, 0.9);
         let ball = Mesh::new(positions, faces);
-        let mut enc = SequenceEncoder::new(EncoderConfig { subdiv_iterations: 1, ..Default::default() }, 1, [-1.0; 3], [1.0; 3]).unwrap();
+        let mut enc = SequenceEncoder::new(EncoderConfig { format: FormatParams { subdiv_iterations: 1, ..Default::default() }, ..Default::default() }, 1, [-1.0; 3], [1.0; 3]).unwrap();
         let mut data = write_header(enc.header());
         data.extend(enc.encode(&ball).unwrap().unit);
         data

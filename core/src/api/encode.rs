@@ -10,10 +10,16 @@ use crate::error::Error;
 use crate::bitstream::SequenceHeader;
 use crate::Mesh;
 
-/// The encoder's options, every field public, [`Default`] the command line's defaults.
-/// [`EncoderConfig::validate`] refuses values out of range (its error converts into
-/// [`Error::Input`] with `?`); [`SequenceEncoder::new`] validates too.
+/// The encoder's options, every field public, [`Default`] the command line's defaults: what
+/// shapes the stream ([`FormatParams`]) apart from how the encoder searches
+/// ([`SearchParams`]). [`EncoderConfig::validate`] refuses values out of range (its error
+/// converts into [`Error::Input`] with `?`); [`SequenceEncoder::new`] validates too.
 pub use crate::encoder::EncoderConfig;
+/// The options the stream carries (QP, subdivision, bit depths, lifting, quantization).
+pub use crate::encoder::FormatParams;
+/// The encoder's search and decision settings (base ratio, intra period, inter stages,
+/// rate-distortion slope, refit, references, ...).
+pub use crate::encoder::SearchParams;
 /// The lifting transform's update weights: per vertex valence or constant.
 pub use crate::encoder::LiftingChoice;
 /// What encoding one frame produced: the unit, the reconstruction the decoder will output,
@@ -24,18 +30,18 @@ pub use crate::encoder::FrameStats;
 /// The bytes a textured frame's texture adds, whether it continues its texture group or
 /// starts one; see [`SequenceEncoder::encode_textured`].
 pub use crate::encoder::TextureCost;
-/// Most frames a predicted frame may look back (`EncoderConfig::references`), which is what
+/// Most frames a predicted frame may look back (`SearchParams::references`), which is what
 /// the decoder keeps.
 pub use crate::encoder::MAX_REFERENCES;
-/// The base mesh ratio the encoder takes at a QP when [`EncoderConfig::base_ratio`] is None.
+/// The base mesh ratio the encoder takes at a QP when [`SearchParams::base_ratio`] is None.
 pub use crate::encoder::base_ratio_for_qp;
-/// The stages of predicting a frame of another connectivity (`EncoderConfig::inter`).
+/// The stages of predicting a frame of another connectivity (`SearchParams::inter`).
 pub use crate::inter::anchor::AnchorStages;
-/// Adaptive quantization's parameters (`EncoderConfig::aq`).
+/// Adaptive quantization's parameters (`FormatParams::aq`).
 pub use crate::residual::quantize::AqParams;
-/// The QPs [`EncoderConfig::qp`] may take.
+/// The QPs [`FormatParams::qp`] may take.
 pub use crate::residual::quantize::QP_RANGE;
-/// The subdivision schemes of the iterations (`EncoderConfig::scheme`), as named on the
+/// The subdivision schemes of the iterations (`FormatParams::scheme`), as named on the
 /// command line.
 pub use crate::residual::subdivide::SchemeChoice;
 

@@ -58,7 +58,7 @@ impl SequenceEncoder {
     /// for the first frame of a group, or when no reference can be moved onto the input),
     /// and the seconds spent moving the reference's base onto the input.
     pub(super) fn best_predicted(&self, input: &Mesh, target: &Bvh) -> Result<(Option<Chosen>, f64), InputError> {
-        if self.frame % self.config.intra_period == 0 {
+        if self.frame % self.config.search.intra_period == 0 {
             return Ok((None, 0.0));
         }
         let Some(stored) = self.closest_reference(input) else { return Ok((None, 0.0)) };
@@ -83,8 +83,8 @@ impl SequenceEncoder {
             };
             (tracking::bound_positions(&bindings, input, &reference.positions), Motion::Tracked(bindings))
         } else {
-            let stages = self.config.inter?;
-            let params = AnchorParams { stages, rigid_align: self.config.rigid_align, motion_parts: self.config.motion_parts, repair_folds: self.config.fold_repair };
+            let stages = self.config.search.inter?;
+            let params = AnchorParams { stages, rigid_align: self.config.search.rigid_align, motion_parts: self.config.search.motion_parts, repair_folds: self.config.search.fold_repair };
             let motions = match &r.motion {
                 Some(Motion::Anchor(m)) => m.as_ref(),
                 _ => None,
@@ -103,7 +103,7 @@ impl SequenceEncoder {
     /// (horse_gallop, QP 22-34: D1 BD-rate against all-intra -28.6 -> -30.9 %). The next
     /// frame starts again from the bindings, not from the refitted places.
     fn predicted_base(&self, r: &Reference, moved: Vec<[f64; 3]>, target: &Bvh) -> Vec<[u32; 3]> {
-        let moved = if self.config.refit { refit_base(&Mesh::new(moved, r.state.faces.clone()), &self.header.schemes, target) } else { moved };
+        let moved = if self.config.search.refit { refit_base(&Mesh::new(moved, r.state.faces.clone()), &self.header.schemes, target) } else { moved };
         let base_grid = self.header.grid.coarser(self.header.base_bits);
         moved.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect()
     }
@@ -144,7 +144,7 @@ impl SequenceEncoder {
         target: &Bvh,
         prior: Option<Prior>,
     ) -> Result<Candidate, InputError> {
-        let (h, qp) = (&self.header, self.config.qp);
+        let (h, qp) = (&self.header, self.config.format.qp);
         let model = FrameModel::new(h, qp, subdivided_base(h, &base, &faces, h.schemes.len()));
         let (sub, frames) = (&model.sub, &model.frames);
         let world = if h.components == 1 {
@@ -217,7 +217,7 @@ impl SequenceEncoder {
     /// the intra candidate `i`'s base (see [`refresh`]), or None when no region is poor or
     /// the base was tracked (its connectivity is the input's).
     pub(super) fn refreshed(&self, p: &Chosen, i: &Chosen, input: &Mesh, target: &Bvh) -> Result<Option<Chosen>, InputError> {
-        if !self.config.refresh || !matches!(p.motion, Some(Motion::Anchor(_))) {
+        if !self.config.search.refresh || !matches!(p.motion, Some(Motion::Anchor(_))) {
             return Ok(None);
         }
         let h = &self.header;
@@ -250,7 +250,7 @@ impl SequenceEncoder {
 }
 
 /// Decimates the input (grid units), refits the base mesh so that its subdivision fits the
-/// input `surface` (with `cfg.refit`) and codes the quantized base mesh.
+/// input `surface` (with `cfg.search.refit`) and codes the quantized base mesh.
 fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], faces: &[[u32; 3]], surface: &Bvh) -> Result<Vec<u8>, InputError> {
     let target = ((faces.len() as f64 * cfg.base_ratio()).ceil() as usize).max(1);
     let base = decimate(input, faces, target);
@@ -264,7 +264,7 @@ fn base_mesh_bytes(h: &SequenceHeader, cfg: &EncoderConfig, input: &[[f64; 3]], 
             base.faces.len()
         )));
     }
-    let refitted = if cfg.refit { refit_base(&base, &h.schemes, surface) } else { base.positions };
+    let refitted = if cfg.search.refit { refit_base(&base, &h.schemes, surface) } else { base.positions };
     let base_grid = h.grid.coarser(h.base_bits);
     let positions: Vec<[u32; 3]> = refitted.iter().map(|&p| base_grid.quantize(base_grid.to_grid(p))).collect();
     Ok(encode_base(&positions, &base.faces, h.base_bits))
@@ -289,6 +289,7 @@ fn differences_from(steps: &[f64], reference: &[i32], dead_zone: impl Fn(usize) 
 mod tests {
     use super::*;
     use crate::stream::bitstream;
+    use crate::encoder::FormatParams;
 
     #[test]
     fn differences_within_the_dead_zone_of_the_reference_are_zero() {
@@ -300,7 +301,7 @@ mod tests {
     /// Whether the predicted candidate of `next` (coded after `first`, at QP 16) codes its
     /// coefficients as differences from the first frame's.
     fn codes_differences(first: &Mesh, next: &Mesh) -> bool {
-        let cfg = EncoderConfig { qp: 16, ..Default::default() };
+        let cfg = EncoderConfig { format: FormatParams { qp: 16, ..Default::default() }, ..Default::default() };
         let mut enc = SequenceEncoder::new(cfg, 2, [0.0; 3], [1.0; 3]).expect("valid configuration");
         enc.encode(first).expect("a valid mesh");
         let input = Mesh::new(next.positions.iter().map(|&p| enc.header.grid.to_grid(p)).collect(), next.faces.clone());

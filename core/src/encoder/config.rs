@@ -40,13 +40,21 @@ impl LiftingChoice {
 }
 
 /// Encoder options. The defaults are the codec's recommended operating point.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct EncoderConfig {
+    /// What the stream carries: the sequence header and the payloads hold these, and the
+    /// decoder reads them.
+    pub format: FormatParams,
+    /// How the encoder finds what it codes: the decoder never sees these.
+    pub search: SearchParams,
+}
+
+/// The options that shape the bitstream ([`EncoderConfig::format`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct FormatParams {
     /// Quantization parameter of the displacements: +6 doubles the step.
     pub qp: i32,
-    /// Base mesh faces as a fraction of the input's; `None` follows the QP
-    /// ([`base_ratio_for_qp`]).
-    pub base_ratio: Option<f64>,
+    /// Subdivision iterations of the base mesh (the levels of detail).
     pub subdiv_iterations: u32,
     /// The subdivision scheme of each iteration.
     pub scheme: SchemeChoice,
@@ -60,6 +68,18 @@ pub struct EncoderConfig {
     pub base_bits: u32,
     /// Code only the normal component of each displacement.
     pub normal_only: bool,
+    /// The lifting transform's update weights.
+    pub lifting: LiftingChoice,
+    /// Adaptive displacement quantization, or `None` for one scale per level.
+    pub aq: Option<AqParams>,
+}
+
+/// The encoder's search and decision settings ([`EncoderConfig::search`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct SearchParams {
+    /// Base mesh faces as a fraction of the input's; `None` follows the QP
+    /// ([`base_ratio_for_qp`]).
+    pub base_ratio: Option<f64>,
     /// Frames per group: every `intra_period`-th frame is intra; 1 makes every frame intra.
     pub intra_period: u32,
     /// How predicted frames find their base mesh when the input's connectivity changed: the
@@ -67,8 +87,6 @@ pub struct EncoderConfig {
     /// the reference input's connectivity (the MPEG test model's behaviour; every topology
     /// change then forces an intra frame).
     pub inter: Option<AnchorStages>,
-    /// Adaptive displacement quantization, or `None` for one scale per level.
-    pub aq: Option<AqParams>,
     /// The exchange rate of the intra/inter decision, in dB of PSNR per doubling of the
     /// rate (the local slope of the codec's RD curve): a frame is predicted when the PSNR it
     /// loses against intra is at most `rd_slope_db * log2(intra bytes / predicted bytes)`.
@@ -76,8 +94,6 @@ pub struct EncoderConfig {
     /// Refit the base mesh so that its subdivision fits the input, before it is quantized:
     /// an intra frame's decimated base and a predicted frame's anchor (not a tracked base).
     pub refit: bool,
-    /// The lifting transform's update weights.
-    pub lifting: LiftingChoice,
     /// Repair folded anchor triangles before their motion is coded (`anchor::folds`; not a
     /// stage of the paper).
     pub fold_repair: bool,
@@ -98,22 +114,29 @@ pub struct EncoderConfig {
     pub intra_reference: bool,
 }
 
-impl Default for EncoderConfig {
+impl Default for FormatParams {
     fn default() -> Self {
         Self {
             qp: 28,
-            base_ratio: None,
             subdiv_iterations: 2,
             scheme: SchemeChoice::Mixed,
             bits: 12,
             base_bits: 9,
             normal_only: true,
+            lifting: LiftingChoice::PerValence,
+            aq: Some(AqParams::default()),
+        }
+    }
+}
+
+impl Default for SearchParams {
+    fn default() -> Self {
+        Self {
+            base_ratio: None,
             intra_period: 32,
             inter: Some(AnchorStages::NnsMeProj),
-            aq: Some(AqParams::default()),
             rd_slope_db: 4.0,
             refit: true,
-            lifting: LiftingChoice::PerValence,
             fold_repair: true,
             rigid_align: true,
             motion_parts: false,
@@ -128,54 +151,54 @@ impl EncoderConfig {
     /// Refuses options outside what the format can carry.
     pub fn validate(&self) -> Result<(), InputError> {
         let err = |m: String| Err(InputError(m));
-        if !quantize::QP_RANGE.contains(&self.qp) {
-            return err(format!("qp {} is out of range: it must be from {} to {}", self.qp, quantize::QP_RANGE.start(), quantize::QP_RANGE.end()));
+        if !quantize::QP_RANGE.contains(&self.format.qp) {
+            return err(format!("qp {} is out of range: it must be from {} to {}", self.format.qp, quantize::QP_RANGE.start(), quantize::QP_RANGE.end()));
         }
         if !(self.base_ratio() > 0.0 && self.base_ratio() <= 1.0) {
             return err(format!("base ratio {} must be above 0 and at most 1", self.base_ratio()));
         }
-        if self.subdiv_iterations > bitstream::MAX_SUBDIV {
-            return err(format!("subdivision iterations {} (at most {})", self.subdiv_iterations, bitstream::MAX_SUBDIV));
+        if self.format.subdiv_iterations > bitstream::MAX_SUBDIV {
+            return err(format!("subdivision iterations {} (at most {})", self.format.subdiv_iterations, bitstream::MAX_SUBDIV));
         }
-        self.scheme.schemes(self.subdiv_iterations).map_err(InputError)?;
-        if !BITS_RANGE.contains(&self.bits) {
-            return err(format!("position bits {} is out of range: it must be from {} to {}", self.bits, BITS_RANGE.start(), BITS_RANGE.end()));
+        self.format.scheme.schemes(self.format.subdiv_iterations).map_err(InputError)?;
+        if !BITS_RANGE.contains(&self.format.bits) {
+            return err(format!("position bits {} is out of range: it must be from {} to {}", self.format.bits, BITS_RANGE.start(), BITS_RANGE.end()));
         }
-        if !BITS_RANGE.contains(&self.base_bits) || self.base_bits > self.bits {
-            return err(format!("base mesh position bits {} must be from {} to {} (the position bits)", self.base_bits, BITS_RANGE.start(), self.bits));
+        if !BITS_RANGE.contains(&self.format.base_bits) || self.format.base_bits > self.format.bits {
+            return err(format!("base mesh position bits {} must be from {} to {} (the position bits)", self.format.base_bits, BITS_RANGE.start(), self.format.bits));
         }
-        if self.intra_period == 0 {
+        if self.search.intra_period == 0 {
             return err("intra period must be at least 1".into());
         }
-        if let Some(aq) = &self.aq {
+        if let Some(aq) = &self.format.aq {
             if !aq.is_valid() {
                 return err(format!("adaptive quantization needs alpha > 0, h > 0 and |delta| < 1, got {aq:?}"));
             }
         }
-        if !(1..=MAX_REFERENCES).contains(&self.references) {
-            return err(format!("references {} is out of range: it must be from 1 to {MAX_REFERENCES}", self.references));
+        if !(1..=MAX_REFERENCES).contains(&self.search.references) {
+            return err(format!("references {} is out of range: it must be from 1 to {MAX_REFERENCES}", self.search.references));
         }
-        if !(self.rd_slope_db.is_finite() && self.rd_slope_db >= 0.0) {
-            return err(format!("rd slope {} must be finite and non-negative", self.rd_slope_db));
+        if !(self.search.rd_slope_db.is_finite() && self.search.rd_slope_db >= 0.0) {
+            return err(format!("rd slope {} must be finite and non-negative", self.search.rd_slope_db));
         }
         Ok(())
     }
 
     /// Base mesh faces per input face: as given, else as the QP asks.
     pub fn base_ratio(&self) -> f64 {
-        self.base_ratio.unwrap_or_else(|| base_ratio_for_qp(self.qp))
+        self.search.base_ratio.unwrap_or_else(|| base_ratio_for_qp(self.format.qp))
     }
 
     /// The sequence header for `frame_count` frames inside the box `[min, max]`.
     pub fn header(&self, frame_count: u32, min: [f64; 3], max: [f64; 3]) -> SequenceHeader {
         SequenceHeader {
             frame_count,
-            grid: Grid::over_box(min, max, self.bits),
-            base_bits: self.base_bits,
-            schemes: self.scheme.schemes(self.subdiv_iterations).expect("validated configuration"),
-            lifting: self.lifting.weights(self.subdiv_iterations as usize),
-            components: if self.normal_only { 1 } else { 3 },
-            aq: self.aq,
+            grid: Grid::over_box(min, max, self.format.bits),
+            base_bits: self.format.base_bits,
+            schemes: self.format.scheme.schemes(self.format.subdiv_iterations).expect("validated configuration"),
+            lifting: self.format.lifting.weights(self.format.subdiv_iterations as usize),
+            components: if self.format.normal_only { 1 } else { 3 },
+            aq: self.format.aq,
         }
     }
 }

@@ -21,7 +21,7 @@ impl SequenceEncoder {
     /// place when it costs less; this spares most predicted frames a second encoding.
     pub(super) fn choose(&mut self, predicted: Option<Chosen>, input: &Mesh, target: &Bvh) -> Result<(Chosen, usize), InputError> {
         // All-intra streams make no decision: their distortion is not estimated.
-        let measured = self.config.intra_period > 1;
+        let measured = self.config.search.intra_period > 1;
         let intra = |s: &Self| -> Result<Chosen, InputError> {
             let candidate = s.intra(input, target, measured)?;
             Ok(Chosen { candidate, reference_distance: 0, motion: None })
@@ -72,7 +72,7 @@ impl SequenceEncoder {
     pub(super) fn rd_prefers(&self, p_bytes: usize, dp: f64, i_bytes: usize, di: f64) -> bool {
         let loss_db = 10.0 * (dp.max(f64::MIN_POSITIVE) / di.max(f64::MIN_POSITIVE)).log10();
         let rate_saving = (i_bytes as f64 / p_bytes as f64).log2();
-        loss_db <= self.config.rd_slope_db * rate_saving
+        loss_db <= self.config.search.rd_slope_db * rate_saving
     }
 
     /// The positions of a reconstruction (in the input's units) in grid units.

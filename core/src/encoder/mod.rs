@@ -9,7 +9,7 @@ mod config;
 mod decision;
 mod references;
 
-pub use config::{base_ratio_for_qp, EncoderConfig, LiftingChoice, MAX_REFERENCES};
+pub use config::{base_ratio_for_qp, EncoderConfig, FormatParams, LiftingChoice, SearchParams, MAX_REFERENCES};
 
 use std::time::Instant;
 
@@ -145,7 +145,7 @@ pub struct SequenceEncoder {
     config: EncoderConfig,
     frame: u32,
     /// The coded frames of the current group a predicted frame may refer to, oldest first:
-    /// the last `config.references` frames and the latest intra frame.
+    /// the last `config.search.references` frames and the latest intra frame.
     references: Vec<Stored>,
     /// Payload bytes and estimated distortion of the last frame coded intra.
     last_intra: Option<(usize, f64)>,
@@ -198,7 +198,7 @@ impl SequenceEncoder {
     /// the sequential encoder does, and the groups of a sequence can be encoded apart. Only
     /// the `same_topology` statistic of that first frame differs: it has no previous input.
     pub fn start_group(&mut self, index: u32) -> Result<(), InputError> {
-        let period = self.config.intra_period;
+        let period = self.config.search.intra_period;
         if index % period != 0 || index >= self.header.frame_count {
             return Err(InputError(format!(
                 "frame {index} does not start a group: groups start at multiples of the intra period {period} below {}",

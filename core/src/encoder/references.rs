@@ -13,17 +13,17 @@ impl SequenceEncoder {
     /// Adds the frame just coded to the references and forgets those no later frame may try.
     pub(super) fn keep_reference(&mut self, stored: Stored) {
         self.references.push(stored);
-        let recent = self.references.len().saturating_sub(self.config.references as usize);
-        let latest_intra = self.references.iter().rposition(|s| s.intra).filter(|_| self.config.intra_reference);
+        let recent = self.references.len().saturating_sub(self.config.search.references as usize);
+        let latest_intra = self.references.iter().rposition(|s| s.intra).filter(|_| self.config.search.intra_reference);
         let kept = std::mem::take(&mut self.references).into_iter().enumerate();
         self.references = kept.filter(|(i, _)| *i >= recent || Some(*i) == latest_intra).map(|(_, s)| s).collect();
     }
 
     /// The references this frame tries, most recent first.
     fn reference_candidates(&self) -> Vec<&Stored> {
-        let recent = self.references.len().saturating_sub(self.config.references as usize);
+        let recent = self.references.len().saturating_sub(self.config.search.references as usize);
         let mut candidates: Vec<&Stored> = self.references[recent..].iter().rev().collect();
-        if self.config.intra_reference {
+        if self.config.search.intra_reference {
             if let Some(intra) = self.references[..recent].iter().rev().find(|s| s.intra) {
                 candidates.push(intra);
             }
@@ -45,7 +45,7 @@ impl SequenceEncoder {
     pub(super) fn closest_reference(&self, input: &Mesh) -> Option<&Stored> {
         let tried: Vec<(&Stored, bool)> = (self.reference_candidates().into_iter().enumerate())
             .map(|(i, s)| (i, s, tracking::same_connectivity(&s.reference.input, input)))
-            .filter(|&(i, _, same)| same || (i == 0 && self.config.inter.is_some()))
+            .filter(|&(i, _, same)| same || (i == 0 && self.config.search.inter.is_some()))
             .map(|(_, s, same)| (s, same))
             .collect();
         if tried.len() < 2 {

@@ -3,7 +3,7 @@
 
 use crate::stream::bitstream::{self, FrameType};
 use crate::decoder::Decoder;
-use crate::encoder::{EncoderConfig, SequenceEncoder};
+use crate::encoder::{EncoderConfig, FormatParams, SearchParams, SequenceEncoder};
 use crate::geom::mesh::Mesh;
 
 /// An octahedron pushed onto the unit sphere after one midpoint subdivision, moving along x.
@@ -17,7 +17,7 @@ fn frames(n: usize) -> Vec<Mesh> {
 
 /// The stream (intra every other frame: I P I P ...) and the start offset of every unit.
 fn stream(n: usize) -> (Vec<u8>, Vec<usize>) {
-    let cfg = EncoderConfig { subdiv_iterations: 1, intra_period: 2, ..Default::default() };
+    let cfg = EncoderConfig { format: FormatParams { subdiv_iterations: 1, ..Default::default() }, search: SearchParams { intra_period: 2, ..Default::default() } };
     let mut enc = SequenceEncoder::new(cfg, n as u32, [-1.0; 3], [1.0; 3]).unwrap();
     let mut data = bitstream::write_header(enc.header());
     let mut starts = Vec::new();

@@ -3,7 +3,7 @@
 
 use crate::stream::bitstream::{self, FrameType};
 use crate::decoder::Decoder;
-use crate::encoder::{EncoderConfig, SequenceEncoder};
+use crate::encoder::{EncoderConfig, FormatParams, SearchParams, SequenceEncoder};
 use crate::geom::mesh::Mesh;
 
 fn ball() -> Mesh {
@@ -68,7 +68,7 @@ fn lcg(seed: &mut u64) -> usize {
 
 #[test]
 fn clean_stream_decodes_and_has_predicted_frames() {
-    let s = stream(&EncoderConfig { subdiv_iterations: 1, ..Default::default() });
+    let s = stream(&EncoderConfig { format: FormatParams { subdiv_iterations: 1, ..Default::default() }, ..Default::default() });
     assert!(decode_all(&s).unwrap() > 0);
     let d = Decoder::new(s).unwrap();
     let types: Vec<FrameType> = (0..3).map(|i| d.frame_info(i).unwrap().frame_type).collect();
@@ -77,7 +77,7 @@ fn clean_stream_decodes_and_has_predicted_frames() {
 
 #[test]
 fn payload_flips_behind_a_valid_crc_never_panic() {
-    let cfg = EncoderConfig { subdiv_iterations: 1, ..Default::default() };
+    let cfg = EncoderConfig { format: FormatParams { subdiv_iterations: 1, ..Default::default() }, ..Default::default() };
     let clean = stream(&cfg);
     let (_, header_len) = bitstream::read_header(&clean).unwrap();
     let mut seed = 11u64;
@@ -104,7 +104,7 @@ fn payload_flips_behind_a_valid_crc_never_panic() {
 
 #[test]
 fn unknown_frame_types_are_rejected() {
-    let mut d = stream(&EncoderConfig { subdiv_iterations: 1, ..Default::default() });
+    let mut d = stream(&EncoderConfig { format: FormatParams { subdiv_iterations: 1, ..Default::default() }, ..Default::default() });
     let (_, start) = bitstream::read_header(&d).unwrap();
     for t in [7, bitstream::TEXTURE_UNIT] {
         d[start] = t;
@@ -119,7 +119,7 @@ fn unknown_frame_types_are_rejected() {
 #[test]
 fn a_header_asking_for_more_subdivision_than_the_frame_justifies_is_refused() {
     // 2048 base faces subdivided 6 times would be 8M faces from a frame of a few KB.
-    let cfg = EncoderConfig { subdiv_iterations: 0, base_ratio: Some(1.0), ..EncoderConfig::default() };
+    let cfg = EncoderConfig { format: FormatParams { subdiv_iterations: 0, ..Default::default() }, search: SearchParams { base_ratio: Some(1.0), ..Default::default() } };
     let mut s = stream_of(&cfg, &[ball_of(4)]);
     let (h, start) = bitstream::read_header(&s).unwrap();
     let schemes = vec![crate::residual::subdivide::Scheme::Midpoint; bitstream::MAX_SUBDIV as usize];
@@ -133,12 +133,12 @@ fn a_header_asking_for_more_subdivision_than_the_frame_justifies_is_refused() {
 
 #[test]
 fn decoder_output_equals_the_encoder_reconstruction_for_intra_and_predicted_frames() {
-    let cfg = EncoderConfig { subdiv_iterations: 2, ..Default::default() };
+    let cfg = EncoderConfig { format: FormatParams { subdiv_iterations: 2, ..Default::default() }, ..Default::default() };
     let b = ball();
     let frames: Vec<Mesh> = (0..4)
         .map(|t| Mesh::new(b.positions.iter().map(|p| [p[0] * 0.8 + 0.03 * t as f64, p[1] * 0.9, p[2]]).collect(), b.faces.clone()))
         .collect();
-    let mut enc = SequenceEncoder::new(EncoderConfig { intra_period: 3, ..cfg }, 4, [-1.0; 3], [1.0; 3]).unwrap();
+    let mut enc = SequenceEncoder::new(EncoderConfig { search: SearchParams { intra_period: 3, ..cfg.search }, ..cfg }, 4, [-1.0; 3], [1.0; 3]).unwrap();
     let mut data = bitstream::write_header(enc.header());
     let mut recon = Vec::new();
     for f in &frames {
