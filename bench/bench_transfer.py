@@ -51,7 +51,6 @@ def transfer_inputs(sequence: str, frames: int) -> list[tuple]:
     ``TextureEncoder.add``, which makes the group's atlas), the atlas read back from it."""
     from dynmesh import api
     from dynmesh import texture as _texture
-    from dynmesh.defaults import FrameType
     from dynmesh.io import read_image, read_mesh, resolve_sequence
     from dynmesh.mesh import Mesh
 
@@ -66,7 +65,7 @@ def transfer_inputs(sequence: str, frames: int) -> list[tuple]:
     for m in meshes:
         _, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces, tex.cost)
         image = m.image if m.image is not None else read_image(m.texture)
-        tex.add(FrameType(stats["type"]), Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
+        tex.add(stats["starts_texture_group"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
         coded.append((pos, faces, m, image))
     tex.finish()
     return [(pos, faces, uv, uv_faces, m.positions, m.faces, m.uvs, m.uv_faces, image, size, size)

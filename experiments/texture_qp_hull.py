@@ -28,7 +28,6 @@ import numpy as np
 
 import dynmesh
 from dynmesh import _core, api, texture
-from dynmesh.defaults import FrameType
 from dynmesh.eval.report import bd_rate
 from dynmesh.mesh import Mesh
 
@@ -55,7 +54,7 @@ def geometry_pass(frames: list[Mesh], qp: int, options: dict) -> tuple[int, list
     for m in frames:
         unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
         nbytes += len(unit)
-        kept.append((FrameType(stats["type"]), Mesh(base_pos, base_faces), Mesh(pos, faces), m, api._image_of(m)))
+        kept.append((stats["starts_texture_group"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, api._image_of(m)))
     return nbytes, kept
 
 

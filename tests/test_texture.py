@@ -266,6 +266,8 @@ def test_a_refreshed_frame_starts_a_texture_group_of_its_own():
     # Frame 1's base has faces frame 0's atlas has no UVs for: it carries an atlas of its
     # own, which frame 2 (moved from frame 1's base) shares.
     assert [f["texture_bytes"] > 0 for f in api.info(data)["frames"]] == [True, True, False]
+    # The geometry encoder's statistic says where the groups start; the texture stage follows it.
+    assert [f["starts_texture_group"] for f in result.frames] == [True, True, False]
     assert np.array_equal(result.reconstructions[2].uv_faces, result.reconstructions[1].uv_faces)
     for r, d in zip(result.reconstructions, api.decode(data)):
         assert np.array_equal(r.uvs, d.uvs) and np.array_equal(r.uv_faces, d.uv_faces) and np.array_equal(r.image, d.image)

@@ -82,6 +82,7 @@ fn stats_dict<'py>(py: Python<'py>, s: &FrameStats) -> PyResult<Bound<'py, PyDic
     let d = PyDict::new(py);
     d.set_item("type", frame_type_name(s.frame_type))?;
     d.set_item("same_topology", s.same_topology)?;
+    d.set_item("starts_texture_group", s.starts_texture_group)?;
     d.set_item("reference_distance", s.reference_distance)?;
     d.set_item("rejected_bytes", s.rejected_bytes)?;
     d.set_item("anchor_seconds", s.anchor_seconds)?;

@@ -101,7 +101,7 @@ def encode_units(enc: _core.Encoder, tex: _texture.TextureEncoder | None, meshes
             except ValueError as e:
                 raise with_frame(e, i) from None
             if tex:  # its errors name their frame
-                tex.add(stats["type"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
+                tex.add(stats["starts_texture_group"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
             units.append(unit)
             result.frames.append(stats)
             if keep_reconstructions:

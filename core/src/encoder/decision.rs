@@ -7,7 +7,7 @@ use crate::geom::bvh::Bvh;
 use crate::geom::mesh::Mesh;
 use crate::stream::bitstream::FrameType;
 
-use super::{Chosen, SequenceEncoder};
+use super::{Candidate, Chosen, SequenceEncoder};
 
 impl SequenceEncoder {
     /// The candidate to keep, and the bytes of the other one if it was coded (else 0).
@@ -57,9 +57,16 @@ impl SequenceEncoder {
 
     /// The bytes of a candidate with what its texture will cost ([`TextureCost`]).
     fn frame_bytes(&self, c: &Chosen) -> usize {
+        c.candidate.payload.len() + self.texture_bytes(self.starts_texture_group(&c.candidate))
+    }
+
+    /// Whether the frame, coded as `c`, starts a texture group: a group's atlas fits one base
+    /// connectivity, so an intra frame starts one, and so does a predicted frame whose base
+    /// faces are not the previous frame's (refreshed, or moved from an older reference).
+    /// The texture stage takes this from the frame's statistics rather than deciding again.
+    pub(super) fn starts_texture_group(&self, c: &Candidate) -> bool {
         let previous = self.references.iter().find(|s| s.frame + 1 == self.frame);
-        let restarts = c.candidate.head.frame_type == FrameType::Intra || !previous.is_some_and(|s| s.reference.state.faces == c.candidate.state.faces);
-        c.candidate.payload.len() + self.texture_bytes(restarts)
+        c.head.frame_type == FrameType::Intra || !previous.is_some_and(|s| s.reference.state.faces == c.state.faces)
     }
 
     /// What the texture of a frame that continues (or restarts) its texture group costs.

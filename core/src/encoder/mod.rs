@@ -58,6 +58,9 @@ pub struct FrameStats {
     pub dropped_faces: usize,
     /// Whether the input had the previous input's connectivity.
     pub same_topology: bool,
+    /// The frame starts a texture group (intra, or its base faces are not the previous
+    /// frame's): in a textured stream it gets a new atlas and a texture unit.
+    pub starts_texture_group: bool,
     /// Bytes the other candidate (intra or predicted) would have cost; 0 if it was not coded.
     pub rejected_bytes: usize,
     /// Seconds spent making the predicted frame's base mesh (anchor or tracking).
@@ -241,6 +244,7 @@ impl SequenceEncoder {
         let (predicted, anchor_seconds) = self.best_predicted(&input, &target)?;
         self.texture_cost = texture_cost();
         let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
+        let starts_texture_group = self.starts_texture_group(&chosen.candidate);
         let unit = bitstream::write_unit(chosen.candidate.head.frame_type, &chosen.candidate.payload);
         let c = chosen.candidate;
         let stats = FrameStats {
@@ -256,6 +260,7 @@ impl SequenceEncoder {
             output_faces: c.reconstruction.faces.len(),
             dropped_faces: mesh.faces.len() - input.faces.len(),
             same_topology,
+            starts_texture_group,
             rejected_bytes,
             anchor_seconds,
             seconds: start.elapsed().as_secs_f64(),

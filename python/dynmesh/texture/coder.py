@@ -1,13 +1,15 @@
 """The texture stage: atlas, texture transfer and video per group of frames, and back.
 
-A *texture group* runs from an intra frame to the frame before the next intra frame. Its
-intra frame gets an atlas made on its decoded base mesh (``atlas``); every frame of the
-group has that base mesh's connectivity (predicted frames move it), so all of them share
-the atlas, subdivided with the mesh (``_core.subdivide_uv``). Each frame's input texture is
-transferred onto the reconstructed mesh in that atlas (``_core.transfer_texture``, padded),
-and the group's images become one video (``video.VideoEncoder``, picture by picture). All
-of it runs on a thread beside the geometry encoder, one frame behind it. The stream carries all of it in one
-texture unit after the group's intra frame, whose fields the core writes and reads
+A *texture group* starts where the geometry encoder says (the frame statistic
+``starts_texture_group``: an intra frame, or a predicted frame whose base faces are not the
+previous frame's) and runs to the frame before the next start. Its first frame gets an atlas
+made on its decoded base mesh (``atlas``); every frame of the group has that base mesh's
+connectivity (predicted frames move it), so all of them share the atlas, subdivided with the
+mesh (``_core.subdivide_uv``). Each frame's input texture is transferred onto the
+reconstructed mesh in that atlas (``_core.transfer_texture``, padded), and the group's images
+become one video (``video.VideoEncoder``, picture by picture). All of it runs on a thread
+beside the geometry encoder, one frame behind it. The stream carries it in one texture unit
+after the group's first frame, whose fields the core writes and reads
 (``_core.pack_texture_payload``, ``_core.read_texture_payload``; ``docs/bitstream.md``,
 texture unit payload).
 """
@@ -21,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import _core
-from ..defaults import TEXTURE, FrameType, texture_qp_for
+from ..defaults import TEXTURE, texture_qp_for
 from ..errors import with_frame
 from ..mesh import Mesh
 from . import atlas, video
@@ -154,9 +156,7 @@ class TextureEncoder:
         self._estimate = estimate_costs
         self._first_frame = first_frame
         self._units: list[tuple[int, bytes]] = []
-        # What the caller's thread knows of the groups: the base connectivity of the current
-        # one and how many frames it has, so that it decides group starts without waiting.
-        self._faces: np.ndarray | None = None
+        # What the caller's thread knows of the current group: how many frames it has.
         self._length = 0
         self._frames = 0
         self._settled_cost: tuple[float, float] | None = None
@@ -186,16 +186,15 @@ class TextureEncoder:
             self._settled_cost = cost
         return cost
 
-    def add(self, frame_type: FrameType, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> None:
-        """Queues a coded frame's texture: ``base`` its decoded base mesh, ``reconstruction``
-        the surface the decoder shows, ``source`` and ``image`` the input frame and texture."""
+    def add(self, starts_group: bool, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> None:
+        """Queues a coded frame's texture: ``starts_group`` whether the frame starts a texture
+        group (the geometry encoder decides it: the frame statistic ``starts_texture_group``),
+        ``base`` its decoded base mesh, ``reconstruction`` the surface the decoder shows,
+        ``source`` and ``image`` the input frame and texture."""
         self._raise_failure()
-        # A group's atlas fits one base connectivity: an intra frame, and a predicted frame
-        # whose base is not its group's (refreshed faces, or a reference from before the
-        # group), start a new one.
-        starts = frame_type == FrameType.INTRA or self._faces is None or not np.array_equal(base.faces, self._faces)
+        starts = starts_group or self._length == 0
         if starts:
-            self._faces, self._length, self._settled_cost = base.faces, 0, None
+            self._length, self._settled_cost = 0, None
         self._length += 1
         self._measured = self._worker.submit(self._add, self._frames, starts, base, reconstruction, source, image)
         self._queued += [self._measured, self._worker.submit(self._to_video, self._frames)]
