@@ -13,7 +13,7 @@ use pyo3::types::PyDict;
 
 use dynmesh::eval::metrics;
 use dynmesh::eval::render::View;
-use dynmesh::eval::sampling::SamplingGrid;
+use dynmesh::eval::sampling::{self, SamplingGrid};
 use dynmesh::texturing::{self, Texture, UvMesh};
 use dynmesh::Mesh;
 
@@ -86,10 +86,11 @@ fn textured_distortion<'py>(
             "peak must be a positive finite number, not {peak}"
         )));
     }
-    released(py, || crate::check_sampling(&reference.mesh, &decoded.mesh, &grid, true))??;
+    let (r, d) = (&reference.mesh, &decoded.mesh);
+    released(py, || sampling::check_sampling((&r.positions, &r.faces), (&d.positions, &d.faces), &grid, true))?.map_err(core_error)?;
     let d = released(py, || metrics::textured_mse(&reference, &ref_tex, &decoded, &dec_tex, &grid))?;
-    crate::check_measured(&[d.geometry.d1_mse, d.geometry.d2_mse])?;
-    crate::check_measured(&d.colour_mse)?;
+    sampling::check_measured(&[d.geometry.d1_mse, d.geometry.d2_mse]).map_err(core_error)?;
+    sampling::check_measured(&d.colour_mse).map_err(core_error)?;
     let [y, cb, cr] = d.colour_mse;
     let [y_psnr, cb_psnr, cr_psnr] = metrics::colour_psnr(d.colour_mse);
     let out = PyDict::new(py);

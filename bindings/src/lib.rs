@@ -337,50 +337,13 @@ fn mesh_distortion(
     let a = mesh_of(&ref_positions, &ref_faces)?;
     let b = mesh_of(&dec_positions, &dec_faces)?;
     let grid = colour::grid_of(box_min, box_max, grid_size)?;
-    released(py, || check_sampling(&a, &b, &grid, false))??;
+    released(py, || sampling::check_sampling((&a.positions, &a.faces), (&b.positions, &b.faces), &grid, false))?.map_err(core_error)?;
     let d = released(py, || {
         let (pa, pb) = rayon::join(|| sampling::sample_grid(&a.positions, &a.faces, &grid), || sampling::sample_grid(&b.positions, &b.faces, &grid));
         metrics::distortion(&pa, &pb)
     })?;
-    check_measured(&[d.d1_mse, d.d2_mse])?;
+    sampling::check_measured(&[d.d1_mse, d.d2_mse]).map_err(core_error)?;
     Ok((d.d1_mse, d.d2_mse, metrics::psnr(d.d1_mse, peak), metrics::psnr(d.d2_mse, peak)))
-}
-
-/// Most rays a metric may cast on one mesh: each can make a sample of about 32 bytes, and
-/// both meshes are sampled at once, so this keeps a comparison to a few gigabytes. The
-/// default grid (1024) casts a few million on a captured frame.
-pub(crate) const MAX_SAMPLE_RAYS: u64 = 1 << 25;
-
-/// Refuses a comparison whose sampling would be empty on either side (nothing to measure)
-/// or exceed [`MAX_SAMPLE_RAYS`], before any sample is made; `coloured` for the rays of
-/// [`sampling::sample_grid_coloured`].
-pub(crate) fn check_sampling(reference: &Mesh, decoded: &Mesh, grid: &sampling::SamplingGrid, coloured: bool) -> PyResult<()> {
-    let count = if coloured { sampling::ray_count_coloured } else { sampling::ray_count };
-    for (what, m) in [("reference", reference), ("decoded", decoded)] {
-        let rays = count(&m.positions, &m.faces, grid);
-        if rays == 0 {
-            return Err(input_error(format!(
-                "the {what} mesh has no surface to sample (all {} faces are degenerate or empty)",
-                m.faces.len()
-            )));
-        }
-        if rays > MAX_SAMPLE_RAYS {
-            return Err(input_error(format!(
-                "sampling the {what} mesh would cast {rays} rays, beyond the limit of {MAX_SAMPLE_RAYS}; \
-                 use a smaller grid size"
-            )));
-        }
-    }
-    Ok(())
-}
-
-/// Refuses error figures that are not finite: one side sampled to no points, so there is no
-/// measurement (identical geometry gives an MSE of 0, a PSNR of infinity, which stays).
-pub(crate) fn check_measured(mse: &[f64]) -> PyResult<()> {
-    if mse.iter().all(|m| m.is_finite()) {
-        return Ok(());
-    }
-    Err(input_error("no distortion can be measured: one of the meshes gives no sample on the grid"))
 }
 
 /// The encoder's default options, keyed as the Python API names them.

@@ -5,6 +5,7 @@
 
 use rayon::prelude::*;
 
+use crate::error::Error;
 use crate::texture::{Texture, UvMesh};
 
 /// Fixed-point scale of the grid corner and step (16 fractional bits).
@@ -250,6 +251,48 @@ fn rasterize(tri: [[f32; 3]; 3], g: &GridF32, mut hit: impl FnMut(SampleKey, [f3
         }
     }
 }
+
+/// Most rays a metric may cast on one mesh: each can make a sample of about 32 bytes, and
+/// both meshes are sampled at once, so this keeps a comparison to a few gigabytes. The
+/// default grid (1024) casts a few million on a captured frame.
+pub const MAX_SAMPLE_RAYS: u64 = 1 << 25;
+
+/// Refuses a comparison of `reference` and `decoded` (positions, faces) whose sampling on
+/// `grid` would be empty on either side (nothing to measure) or cast more than
+/// [`MAX_SAMPLE_RAYS`], before any sample is made; `coloured` counts the rays of
+/// [`sample_grid_coloured`]. Errors: [`Error::Input`] naming the side and why.
+pub fn check_sampling(reference: MeshRef, decoded: MeshRef, grid: &SamplingGrid, coloured: bool) -> Result<(), Error> {
+    let count = if coloured { ray_count_coloured } else { ray_count };
+    for (what, (positions, faces)) in [("reference", reference), ("decoded", decoded)] {
+        let rays = count(positions, faces, grid);
+        if rays == 0 {
+            return Err(Error::Input(format!(
+                "the {what} mesh has no surface to sample (all {} faces are degenerate or empty)",
+                faces.len()
+            )));
+        }
+        if rays > MAX_SAMPLE_RAYS {
+            return Err(Error::Input(format!(
+                "sampling the {what} mesh would cast {rays} rays, beyond the limit of {MAX_SAMPLE_RAYS}; \
+                 use a smaller grid size"
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses error figures that are not finite: one side sampled to no points, so there is no
+/// measurement (identical geometry gives an MSE of 0, a PSNR of infinity, which stays).
+/// Errors: [`Error::Input`].
+pub fn check_measured(mse: &[f64]) -> Result<(), Error> {
+    if mse.iter().all(|m| m.is_finite()) {
+        return Ok(());
+    }
+    Err(Error::Input("no distortion can be measured: one of the meshes gives no sample on the grid".into()))
+}
+
+/// A mesh as [`check_sampling`] takes it: positions and faces.
+pub type MeshRef<'a> = (&'a [[f64; 3]], &'a [[u32; 3]]);
 
 /// Rays that [`sample_grid`] casts for `(positions, faces)` on `grid`, counted without casting
 /// them (each makes at most one raw sample): what sampling will cost in time and memory.
