@@ -64,7 +64,8 @@ def test_the_server_serves_the_page_the_decoder_and_the_stream_and_nothing_else(
         assert "player.js" in page
         js = get("/src/decoder.js")
         assert js.headers["Content-Type"].startswith("text/javascript")
-        assert b"export class RangeDecoder" in get("/src/stream/ec.js").read()  # modules in folders
+        assert b"export class RangeDecoder" in get("/src/ec.js").read()
+        assert b"export const INTRA" in get("/src/stream/bitstream.js").read()  # modules in folders
         for bad in ("/src/../../pyproject.toml", "/player/", "/web/src/decoder.js", "/src/%2e%2e/package.json",
                     "/src/x/../../../pyproject.toml", "/src//decoder.js", "/src/./decoder.js", "/src"):
             with pytest.raises(urllib.error.HTTPError) as e:

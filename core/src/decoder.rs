@@ -21,7 +21,7 @@ use crate::model::{base_in_world_units, face_allowance, subdivided_base, FrameMo
 use crate::residual::coefcoder;
 use crate::residual::subdivide::Subdivision;
 use crate::stream::bitstream::{self, FrameType, SequenceHeader, Unit};
-use crate::stream::ec;
+use crate::ec;
 use crate::stream::payload::Payload;
 use crate::stream::resync::{self, Damage, FrameSlot, TextureSlot};
 use crate::stream::syntax::UNIT_OVERHEAD;

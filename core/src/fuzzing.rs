@@ -14,7 +14,7 @@ use crate::base::coder;
 use crate::stream::bitstream;
 use crate::residual::coefcoder;
 use crate::decoder::Decoder;
-use crate::stream::ec;
+use crate::ec;
 use crate::inter::{motion, refresh};
 use crate::residual::subdivide::{subdivide, Scheme};
 use crate::texture::uvcoder;

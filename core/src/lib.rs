@@ -26,8 +26,9 @@
 //! `Mesh` → `geom` (welding, the position grid) → `base` (intra frame: decimation, refit and the
 //! static base-mesh coder, whose decoded result every later stage uses) or `inter` (predicted
 //! frame: tracking or the anchor mesh, then motion coding) → `residual` (subdivision, fitting
-//! and local frames, lifting wavelet, quantization, coefficient coding) → `stream` (entropy
-//! coder and container); `texture` codes the atlas and resamples the texture. The `decoder`
+//! and local frames, lifting wavelet, quantization, coefficient coding) → `stream` (the
+//! container); every stage codes its blocks with the range coder `ec`, which sits below them
+//! all; `texture` codes the atlas and resamples the texture. The `decoder`
 //! runs the inverse path; `model` is the reconstruction both sides share, so the `encoder`'s
 //! reconstruction and the decoder's output agree bit for bit. `docs/architecture.md` describes
 //! each.
@@ -35,6 +36,7 @@
 mod api;
 mod error;
 mod geom;
+mod ec;
 mod stream;
 mod base;
 mod inter;

@@ -12,7 +12,7 @@
 import { readHeader, readUnits, Reader, INTRA, PREDICTED } from './stream/bitstream.js';
 import { QP_MIN, QP_MAX, MODE_COEFFICIENT_DIFFERENCES, MODE_REFRESH, MODE_MAX, UNIT_OVERHEAD } from './stream/syntax.js';
 import { DecodeError } from './error.js';
-import { RangeDecoder } from './stream/ec.js';
+import { RangeDecoder } from './ec.js';
 import { decodeBase } from './base/coder.js';
 import { decodeMotion } from './inter/motion.js';
 import { decodeRefresh, applyRefresh, carry } from './inter/refresh.js';

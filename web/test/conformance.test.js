@@ -6,7 +6,7 @@ import { readFileSync } from 'node:fs';
 import { fileURLToPath } from 'node:url';
 import { Decoder } from '../src/index.js';
 import { readPayload } from '../src/decoder.js';
-import { RangeDecoder, bitModels } from '../src/stream/ec.js';
+import { RangeDecoder, bitModels } from '../src/ec.js';
 import { frameHash } from '../src/hash.js';
 import { frameUvs } from '../src/texture/unit.js';
 import { createHash } from 'node:crypto';

@@ -3,9 +3,8 @@
 
 use crate::decoder;
 use crate::error::{DecodeError, Error};
-use crate::bitstream::{SequenceHeader, VERSION};
-use crate::stream::bitstream::{self, MAGIC};
-use crate::Mesh;
+use crate::geom::mesh::Mesh;
+use crate::stream::bitstream::{self, SequenceHeader, MAGIC, VERSION};
 
 /// What [`Decoder::frame_info`] tells about a frame without decoding it: type, reference,
 /// QP and the byte sizes of its unit and parts.
@@ -154,8 +153,8 @@ fn classified(e: DecodeError, other_version: bool) -> Error {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::encode::{EncoderConfig, FormatParams, SequenceEncoder};
-    use crate::bitstream::write_header;
+    use crate::api::encode::{EncoderConfig, FormatParams, SequenceEncoder};
+    use crate::stream::bitstream::write_header;
     use crate::geom::testmesh;
 
     fn stream() -> Vec<u8> {

@@ -7,8 +7,8 @@
 
 use crate::encoder;
 use crate::error::Error;
-use crate::bitstream::SequenceHeader;
-use crate::Mesh;
+use crate::geom::mesh::Mesh;
+use crate::stream::bitstream::SequenceHeader;
 
 /// The encoder's options, every field public, [`Default`] the command line's defaults: what
 /// shapes the stream ([`FormatParams`]) apart from how the encoder searches

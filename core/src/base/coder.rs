@@ -1,6 +1,6 @@
 //! Lossless static coder of the base mesh (the role Draco/Edgebreaker plays in the test model).
 //!
-//! The stream is one range-coded block ([`crate::stream::ec`]) in which every symbol has an adaptive
+//! The stream is one range-coded block ([`crate::ec`]) in which every symbol has an adaptive
 //! context. Connectivity is coded whole before positions, so that each position can be
 //! predicted from all of its neighbours that precede it, not only from the face it was
 //! reached through: that is worth more than the geometric contexts interleaving would give
@@ -23,7 +23,7 @@
 use crate::error::Corrupt;
 use crate::base::connectivity::{connectivity, Source};
 use crate::base::positions::code_positions;
-use crate::stream::ec::{DecSide, Decoder, EncSide, Encoder, UIntModel};
+use crate::ec::{DecSide, Decoder, EncSide, Encoder, UIntModel};
 
 /// Most faces one byte of stream may announce: a hostile stream costs at most this much
 /// work and memory per byte. Real meshes need well over 2 bits per face; the encoder pads the

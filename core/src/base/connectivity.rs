@@ -25,7 +25,7 @@
 //!
 
 use crate::error::Corrupt;
-use crate::stream::ec::{BitModel, IntModel, Side, UIntModel};
+use crate::ec::{BitModel, IntModel, Side, UIntModel};
 use crate::geom::mesh::{edge_key, EdgeMap};
 
 /// The encoder's knowledge of the input mesh: which faces are still to code and how

@@ -14,7 +14,7 @@
 //!
 
 use crate::error::Corrupt;
-use crate::stream::ec::{IntModel, Side};
+use crate::ec::{IntModel, Side};
 use crate::geom::mesh::{dot, edge_key, sub};
 
 /// Faces across one edge considered for a parallelogram: bounds work on hostile fans.

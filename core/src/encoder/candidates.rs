@@ -19,7 +19,7 @@ use crate::residual::displace;
 use crate::residual::quantize;
 use crate::residual::subdivide::Subdivision;
 use crate::stream::bitstream::{FrameType, SequenceHeader};
-use crate::stream::ec;
+use crate::ec;
 use crate::stream::payload::Payload;
 
 use super::{Candidate, Chosen, EncoderConfig, Head, Motion, Reference, SequenceEncoder};

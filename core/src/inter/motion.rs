@@ -17,7 +17,7 @@
 
 use crate::error::Corrupt;
 use crate::geom::mesh::Adjacency;
-use crate::stream::ec::{self, BitModel, DecSide, EncSide, IntModel, Side};
+use crate::ec::{self, BitModel, DecSide, EncSide, IntModel, Side};
 
 /// Coding contexts, shared by encoder and decoder so that both adapt identically.
 struct Models {

@@ -38,7 +38,7 @@ pub const POOR_FIT: f64 = 64.0;
 /// Marks a vertex that repeats none of the reference's.
 pub const NEW: u32 = u32::MAX;
 use crate::stream::bitstream::{Reader, Writer};
-use crate::stream::ec::{self, BitModel};
+use crate::ec::{self, BitModel};
 
 /// The refresh block of `dropped` (one flag per face of the moved base) and the base mesh
 /// block `patch`.

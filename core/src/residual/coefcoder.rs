@@ -8,7 +8,7 @@
 //! coefficient: detail tends to cluster, and the parents are always decoded first.
 
 use crate::error::Corrupt;
-use crate::stream::ec::{BitModel, DecSide, Decoder, EncSide, Encoder, Side, UIntModel};
+use crate::ec::{BitModel, DecSide, Decoder, EncSide, Encoder, Side, UIntModel};
 use crate::residual::subdivide::Subdivision;
 
 /// Contexts of one (level, component) pair.

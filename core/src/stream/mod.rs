@@ -1,12 +1,11 @@
-//! Bytes: the binary range coder with adaptive models that every coder runs over ([`ec`],
-//! whose `Side` drives encoding and decoding through one function), the container of
-//! sequence header and CRC-checked frame units ([`bitstream`]), the fields inside a frame unit
+//! Bytes, the last stage: the container of sequence header and CRC-checked frame units
+//! ([`bitstream`]), the fields inside a frame unit
 //! ([`payload`]) and a texture unit ([`texture_payload`]), and the recovery of the frame units
 //! that survive in a damaged stream ([`resync`]). [`syntax`] declares the fields, widths, codes
 //! and limits of the container and the payloads that those writers and readers go through
-//! (and `web/src/stream/syntax.js` mirrors).
+//! (and `web/src/stream/syntax.js` mirrors). The range coder the stages' blocks are coded
+//! with is [`crate::ec`], below every stage, so that no stage imports this container.
 
-pub mod ec;
 pub mod syntax;
 pub mod bitstream;
 pub mod payload;

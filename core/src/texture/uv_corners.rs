@@ -17,7 +17,7 @@
 //!
 
 use crate::error::Corrupt;
-use crate::stream::ec::Side;
+use crate::ec::Side;
 use crate::geom::mesh::{dot, edge_key, sub};
 use crate::texture::uv_state::{face_normal, squared_distance, Atlas, Models, Truth, BEND_COS};
 

@@ -15,7 +15,7 @@
 //!
 
 use crate::error::Corrupt;
-use crate::stream::ec::{IntModel, Side};
+use crate::ec::{IntModel, Side};
 use crate::geom::mesh::{cross, dot, edge_key, sub};
 use crate::texture::uv_state::{face_normal, uv_cross, Atlas, Models};
 

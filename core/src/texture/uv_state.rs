@@ -4,7 +4,7 @@
 //! encoder's input, and the small UV and face geometry all three measure with.
 
 use crate::geom::mesh::{cross, dot, sub, EdgeMap};
-use crate::stream::ec::{BitModel, IntModel};
+use crate::ec::{BitModel, IntModel};
 
 /// Cosine of the angle between face normals beyond which an edge counts as a crease.
 pub(crate) const BEND_COS: f64 = 0.9;

@@ -4,7 +4,7 @@
 //! An intra frame's atlas is computed on the decoded base mesh, so the decoder already has
 //! the faces (and, if the caller passes them, the positions); what it lacks is, per corner,
 //! an index into a UV list (a vertex on a chart seam has several UVs) and the list. Both are
-//! coded in one range-coded block ([`crate::stream::ec`]), face by face in the given order, which the
+//! coded in one range-coded block ([`crate::ec`]), face by face in the given order, which the
 //! base mesh coder makes a traversal order, so consecutive faces are neighbours.
 //!
 //! Which UV each corner uses is [`crate::texture::uv_corners`]; the values of new UVs,
@@ -15,7 +15,7 @@
 //! the caller's mesh, whatever the data, and allocates nothing the faces cannot reference.
 
 use crate::error::Corrupt;
-use crate::stream::ec::{DecSide, Decoder, EncSide, Encoder, Side};
+use crate::ec::{DecSide, Decoder, EncSide, Encoder, Side};
 use crate::geom::mesh::{dot, edge_key, sub, EdgeMap};
 use crate::texture::uv_corners::decide_corners;
 use crate::texture::uv_prediction::code_new_uvs;
@@ -503,7 +503,7 @@ mod meter {
     //! The ideal code length of each class of symbol, from shadow copies of the adaptive
     //! models (same update rule as `ec`), to see where the bits of an atlas go.
     use super::*;
-    use crate::stream::ec::{BitModel, IntModel};
+    use crate::ec::{BitModel, IntModel};
     use crate::texture::uv_prediction::Prediction;
     use std::collections::HashMap;
 
@@ -536,7 +536,7 @@ mod meter {
     }
 
     impl Side for Meter {
-        fn uint(&mut self, _: &mut crate::stream::ec::UIntModel, _: u32) -> u32 {
+        fn uint(&mut self, _: &mut crate::ec::UIntModel, _: u32) -> u32 {
             unreachable!("the UV coder codes no unsigned integers")
         }
         fn bit(&mut self, m: &mut BitModel, v: bool) -> bool {

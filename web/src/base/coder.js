@@ -7,7 +7,7 @@
 // Error with the Rust reason. The position predictor feeds float64 results back into the
 // decoding, so its arithmetic follows the Rust expressions operation for operation.
 
-import { RangeDecoder, UIntModel, IntModel, bitModels } from '../stream/ec.js';
+import { RangeDecoder, UIntModel, IntModel, bitModels } from '../ec.js';
 
 const MAX_FACES_PER_BYTE = 4;
 const MAX_BITS = 30;

@@ -9,7 +9,7 @@
 // stay below 2^53 (the Rust side bounds the samples for this), so JS numbers hold them
 // exactly, and its solve repeats the Rust doubles operation for operation.
 
-import { bitModels, IntModel } from '../stream/ec.js';
+import { bitModels, IntModel } from '../ec.js';
 
 /**
  * Sorted, repeat-free neighbour lists of `faces` over `n` vertices, as compressed rows.
@@ -129,7 +129,7 @@ function affineAt(v, samples, reference, motion) {
 }
 
 /**
- * @param {import('../stream/ec.js').RangeDecoder} dec
+ * @param {import('../ec.js').RangeDecoder} dec
  * @param {Uint32Array} reference flat xyz on the base grid
  * @param {Uint32Array} faces the reference connectivity
  * @param {number} bits base grid bits

@@ -4,7 +4,7 @@
 // the moved base's faces, then a base mesh block) or throws an Error with the Rust reason;
 // `applyRefresh` and `carry` return what the Rust `apply` and `carry` return.
 
-import { RangeDecoder, bitModels } from '../stream/ec.js';
+import { RangeDecoder, bitModels } from '../ec.js';
 import { decodeBase } from '../base/coder.js';
 import { subdividedFaces } from '../residual/subdivide.js';
 

@@ -7,13 +7,13 @@
 // decoding reads only the levels it keeps, since later levels come later in the block),
 // or null where the Rust code returns None.
 
-import { bitModels, UIntModel } from '../stream/ec.js';
+import { bitModels, UIntModel } from '../ec.js';
 
 // Bank layout of one (level, component) slice.
 const ALL_ZERO = 0, ZERO = 1, SIGN = 4, GT1 = 5, GT2 = 6;
 
 /**
- * @param {import('../stream/ec.js').RangeDecoder} dec
+ * @param {import('../ec.js').RangeDecoder} dec
  * @param {number} comps 1 or 3
  * @param {import('./subdivide.js').Subdivision} sub
  * @returns {Int32Array|null} vertex-major, `comps` values per vertex

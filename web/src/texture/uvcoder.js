@@ -9,7 +9,7 @@
 // face's known corners and the 3D shape of the triangle; predictions use IEEE basic
 // operations and sqrt only, in the Rust order, so both decoders agree bit for bit.
 
-import { RangeDecoder, bitModels, IntModel } from '../stream/ec.js';
+import { RangeDecoder, bitModels, IntModel } from '../ec.js';
 import { roundHalfAway } from '../base/coder.js';
 
 const MAX_UV_BITS = 16;

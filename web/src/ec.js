@@ -1,4 +1,4 @@
-// The range decoder of `core/src/stream/ec.rs` (LZMA's, with two-speed 16-bit probabilities).
+// The range decoder of `core/src/ec.rs` (LZMA's, with two-speed 16-bit probabilities).
 //
 // Contract: reads exactly what the Rust encoder wrote, symbol for symbol. All state is
 // unsigned 32-bit and kept in JS numbers; products stay below 2^32, so they are exact.
