@@ -7,7 +7,7 @@ use crate::geom::bvh::Bvh;
 use crate::geom::mesh::Mesh;
 use crate::stream::bitstream::FrameType;
 
-use super::{Candidate, Chosen, SequenceEncoder};
+use super::{Candidate, Chosen, SequenceEncoder, TextureCost};
 
 impl SequenceEncoder {
     /// The candidate to keep, and the bytes of the other one if it was coded (else 0).
@@ -19,26 +19,35 @@ impl SequenceEncoder {
     /// there is this frame also coded intra, and the predicted frame with its worst-fitting
     /// regions refreshed from the intra candidate's base ([`Self::refreshed`]) tried in its
     /// place when it costs less; this spares most predicted frames a second encoding.
-    pub(super) fn choose(&mut self, predicted: Option<Chosen>, input: &Mesh, target: &Bvh) -> Result<(Chosen, usize), InputError> {
+    /// `texture_cost` gives what the frame's texture adds ([`TextureCost`]).
+    pub(super) fn choose(
+        &mut self,
+        predicted: Option<Chosen>,
+        input: &Mesh,
+        target: &Bvh,
+        texture_cost: impl FnOnce() -> Option<TextureCost>,
+    ) -> Result<(Chosen, usize), InputError> {
         // All-intra streams make no decision: their distortion is not estimated.
         let measured = self.config.search.intra_period > 1;
         let intra = |s: &Self| -> Result<Chosen, InputError> {
             let candidate = s.intra(input, target, measured)?;
             Ok(Chosen { candidate, reference_distance: 0, motion: None })
         };
+        let texture = texture_cost();
         let Some(p) = predicted else {
             let i = intra(self)?;
             self.last_intra = measured.then_some((i.candidate.payload.len(), i.candidate.distortion));
             return Ok((i, 0));
         };
         if let Some((bytes, di)) = self.last_intra {
-            if self.rd_prefers(self.frame_bytes(&p), p.candidate.distortion, bytes + self.texture_bytes(true), di) {
+            if self.rd_prefers(self.frame_bytes(&p, texture), p.candidate.distortion, bytes + texture_bytes(texture, true), di) {
                 return Ok((p, 0));
             }
         }
         let i = intra(self)?;
         self.last_intra = Some((i.candidate.payload.len(), i.candidate.distortion));
-        let prefers = |s: &Self, a: &Chosen, b: &Chosen| s.rd_prefers(s.frame_bytes(a), a.candidate.distortion, s.frame_bytes(b), b.candidate.distortion);
+        let prefers =
+            |s: &Self, a: &Chosen, b: &Chosen| s.rd_prefers(s.frame_bytes(a, texture), a.candidate.distortion, s.frame_bytes(b, texture), b.candidate.distortion);
         let rejected = |c: &Chosen| c.candidate.payload.len();
         let (p, passed_over) = match self.refreshed(&p, &i, input, target)? {
             Some(r) if !prefers(self, &p, &r) => (r, None),
@@ -56,8 +65,8 @@ impl SequenceEncoder {
     }
 
     /// The bytes of a candidate with what its texture will cost ([`TextureCost`]).
-    fn frame_bytes(&self, c: &Chosen) -> usize {
-        c.candidate.payload.len() + self.texture_bytes(self.starts_texture_group(&c.candidate))
+    fn frame_bytes(&self, c: &Chosen, texture: Option<TextureCost>) -> usize {
+        c.candidate.payload.len() + texture_bytes(texture, self.starts_texture_group(&c.candidate))
     }
 
     /// Whether the frame, coded as `c`, starts a texture group: a group's atlas fits one base
@@ -67,11 +76,6 @@ impl SequenceEncoder {
     pub(super) fn starts_texture_group(&self, c: &Candidate) -> bool {
         let previous = self.references.iter().find(|s| s.frame + 1 == self.frame);
         c.head.frame_type == FrameType::Intra || !previous.is_some_and(|s| s.reference.state.faces == c.state.faces)
-    }
-
-    /// What the texture of a frame that continues (or restarts) its texture group costs.
-    fn texture_bytes(&self, restarts: bool) -> usize {
-        self.texture_cost.map_or(0, |t| (if restarts { t.restarted } else { t.continued }).max(0.0).round() as usize)
     }
 
     /// True when a predicted frame of `p_bytes` and distortion `dp` beats an intra frame of
@@ -99,6 +103,11 @@ impl SequenceEncoder {
         let backward = Bvh::new(&rec, &reconstruction.faces).mean_squared_distance(&input.positions, &input.faces);
         forward.max(backward)
     }
+}
+
+/// What the texture of a frame that continues (or restarts) its texture group costs.
+fn texture_bytes(texture: Option<TextureCost>, restarts: bool) -> usize {
+    texture.map_or(0, |t| (if restarts { t.restarted } else { t.continued }).max(0.0).round() as usize)
 }
 
 #[cfg(test)]

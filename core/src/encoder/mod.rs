@@ -152,8 +152,6 @@ pub struct SequenceEncoder {
     references: Vec<Stored>,
     /// Payload bytes and estimated distortion of the last frame coded intra.
     last_intra: Option<(usize, f64)>,
-    /// What the frame's texture will cost, when the stream is textured ([`TextureCost`]).
-    texture_cost: Option<TextureCost>,
 }
 
 /// The bytes a textured frame's texture adds, which the frame type decides: a frame whose
@@ -183,7 +181,7 @@ impl SequenceEncoder {
         if !min.iter().chain(&max).all(|c| c.is_finite()) {
             return Err(InputError("bounding box must be finite".into()));
         }
-        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, references: Vec::new(), last_intra: None, texture_cost: None })
+        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, references: Vec::new(), last_intra: None })
     }
 
     pub fn header(&self) -> &SequenceHeader {
@@ -242,8 +240,7 @@ impl SequenceEncoder {
         let target = Bvh::new(&input.positions, &input.faces);
         let same_topology = self.references.last().is_some_and(|s| tracking::same_connectivity(&s.reference.input, &input));
         let (predicted, anchor_seconds) = self.best_predicted(&input, &target)?;
-        self.texture_cost = texture_cost();
-        let (chosen, rejected_bytes) = self.choose(predicted, &input, &target)?;
+        let (chosen, rejected_bytes) = self.choose(predicted, &input, &target, texture_cost)?;
         let starts_texture_group = self.starts_texture_group(&chosen.candidate);
         let unit = bitstream::write_unit(chosen.candidate.head.frame_type, &chosen.candidate.payload);
         let c = chosen.candidate;
