@@ -113,7 +113,6 @@ class _Group:
     uv_faces: np.ndarray
     video: video.VideoEncoder
     estimated: list = field(default_factory=list)  # its first images, while costs are estimated
-    pending: np.ndarray | None = None  # the last frame's texture, on its way into the video
     intra_bytes: int | None = None  # its first frame coded alone
     predicted_bytes: int | None = None  # what its second frame adds to the first
 
@@ -197,7 +196,7 @@ class TextureEncoder:
             self._length, self._settled_cost = 0, None
         self._length += 1
         self._measured = self._worker.submit(self._add, self._frames, starts, base, reconstruction, source, image)
-        self._queued += [self._measured, self._worker.submit(self._to_video, self._frames)]
+        self._queued += [self._measured, self._worker.submit(self._to_video, self._frames, self._measured)]
         self._frames += 1
 
     def finish(self) -> list[tuple[int, bytes]]:
@@ -243,7 +242,9 @@ class TextureEncoder:
         if any(f.done() and f.exception() is not None for f in self._queued):
             self._wait()
 
-    def _add(self, index: int, starts: bool, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> None:
+    def _add(self, index: int, starts: bool, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> np.ndarray:
+        """The frame's texture in its group's atlas (a new group's atlas made first), its cost
+        measured while the group's first two frames are."""
         try:
             if starts:
                 self._close()
@@ -260,19 +261,18 @@ class TextureEncoder:
             # waits for the measure, not for the video encoder's start-up (half a second).
             if self._estimate and g.predicted_bytes is None:
                 self._measure(g, texture)
-            g.pending = texture
+            return texture
         except ValueError as e:
             raise with_frame(e, self._first_frame + index) from None
 
-    def _to_video(self, index: int) -> None:
-        """The frame's texture into its group's video (a task of its own, which ``cost``
-        does not wait for)."""
-        g = self._group
+    def _to_video(self, index: int, transferred: Future) -> None:
+        """The frame's texture (``_add``'s result) into its group's video: a task of its own,
+        which ``cost`` does not wait for."""
+        texture = transferred.result()  # its error, already naming the frame, is raised first anyway
         try:
-            g.video.add(g.pending)
+            self._group.video.add(texture)
         except ValueError as e:
             raise with_frame(e, self._first_frame + index) from None
-        g.pending = None
 
     def _measure(self, g: _Group, texture: np.ndarray) -> None:
         """The group's intra and predicted video bytes, from its first two images."""
