@@ -18,9 +18,8 @@ when other work on a shared machine inflates the wall time):
 from __future__ import annotations
 
 import argparse
-import os
 
-from common import example_lines, markdown_table, median_rows, write_section
+from common import example_table, write_section
 
 MEASUREMENTS = ["bvh", "fit", "render"]
 COLUMNS = [("kernel", "measurement", "s"), ("size", "size", "s"), ("threads", "threads", "d"),
@@ -33,10 +32,7 @@ def main() -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--print-only", action="store_true", help="do not write docs/benchmarks.md")
     a = ap.parse_args()
-    load = os.getloadavg()[0]
-    rows = median_rows([example_lines("kernel_timings", a.only, features=("internals",)) for _ in range(a.repeat)], ["wall_ms", "cpu_ms"])
-    table = markdown_table(rows, COLUMNS)
-    print(table)
+    table, load = example_table("kernel_timings", a.only, ("internals",), ["wall_ms", "cpu_ms"], COLUMNS, a.repeat)
     if not a.print_only:
         write_section("geometry kernels and renderer", (
             f"`core/examples/kernel_timings.rs` ({', '.join(a.only)}; release build), median of {a.repeat} runs of the "

@@ -17,9 +17,8 @@ lies from its input):
 from __future__ import annotations
 
 import argparse
-import os
 
-from common import SHARED_DATA, example_lines, markdown_table, median_rows, write_section
+from common import SHARED_DATA, example_table, write_section
 
 COLUMNS = [("measurement", "measurement", "s"), ("size", "size", "s"), ("implementation", "implementation", "s"),
            ("ms", "median ms", ".1f"), ("note", "note", "s")]
@@ -32,11 +31,7 @@ def main() -> None:
     ap.add_argument("--print-only", action="store_true", help="do not write docs/benchmarks.md")
     a = ap.parse_args()
     meshes = [sorted((SHARED_DATA / c).glob("*.obj"))[0] for c in CAPTURES if (SHARED_DATA / c).is_dir()]
-    load = os.getloadavg()[0]
-    runs = [example_lines("library_comparison", meshes, ("compare-libraries",)) for _ in range(a.repeat)]
-    rows = median_rows(runs, ["ms"])
-    table = markdown_table(rows, COLUMNS)
-    print(table)
+    table, load = example_table("library_comparison", meshes, ("compare-libraries",), ["ms"], COLUMNS, a.repeat)
     if not a.print_only:
         write_section("our kernels against libraries", (
             f"`core/examples/library_comparison.rs` (release build, feature `compare-libraries`), median of {a.repeat} "

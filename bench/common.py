@@ -76,3 +76,14 @@ def median_rows(runs: list[list[dict]], keys: list[str]) -> list[dict]:
     runs print the same measurements in the same order, so rows line up by position)."""
     return [{**lines[0], **{k: statistics.median(r[k] for r in lines) for k in keys}} for lines in zip(*runs)]
 
+
+def example_table(example: str, args: list, features: tuple[str, ...], keys: list[str],
+                  columns: list[tuple[str, str, str]], repeat: int) -> tuple[str, float]:
+    """Runs the core's Rust example ``example`` ``repeat`` times (``example_lines``) and prints
+    the markdown table of the medians of ``keys`` (``median_rows``): the table, and the load
+    average before the runs, which the section's text quotes."""
+    load = os.getloadavg()[0]
+    rows = median_rows([example_lines(example, args, features) for _ in range(repeat)], keys)
+    table = markdown_table(rows, columns)
+    print(table)
+    return table, load
