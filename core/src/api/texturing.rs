@@ -8,7 +8,6 @@
 //! data return [`Error`].
 
 use crate::error::Error;
-use crate::stream::texture_payload::TEXTURE_PAYLOAD_VERSION;
 
 /// An RGB8 texture image, rows from the top.
 pub use crate::texture::Texture;
@@ -91,20 +90,9 @@ pub fn rgb_of_yuv420_10bit(planes: &[u16], width: usize, height: usize) -> Resul
 /// build does not know (an index beyond [`TEXTURE_CODECS`]); [`Error::Decode`] (without a
 /// place in a stream) for a truncated or inconsistent one. The message names what is wrong.
 pub fn read_texture_payload(data: &[u8]) -> Result<TexturePayload, Error> {
-    TexturePayload::read(data).map_err(|e| {
-        // `TexturePayload::read` checks the length, then the version, then the codec.
-        let unsupported = match *data {
-            [version, codec, ..] if data.len() >= FIXED_FIELDS => {
-                version != TEXTURE_PAYLOAD_VERSION || codec as usize >= TEXTURE_CODECS.len()
-            }
-            _ => false,
-        };
-        if unsupported { Error::Unsupported(e.0) } else { e.into() }
-    })
+    TexturePayload::read(data)
 }
 
-/// Bytes of a payload's fixed fields: shorter is truncated, whatever its first bytes.
-const FIXED_FIELDS: usize = 11;
 
 #[cfg(test)]
 mod tests {
@@ -126,7 +114,7 @@ mod tests {
         assert_eq!(with(0, 2), Err(Error::Unsupported("texture unit version 2 is not supported".into())));
         assert_eq!(with(1, 7), Err(Error::Unsupported("unknown texture codec 7".into())));
         assert!(matches!(with(2, 3), Err(Error::Decode { frame: None, offset: None, .. })));
-        for cut in [0, 1, 2, FIXED_FIELDS - 1, FIXED_FIELDS, bytes.len() - 1] {
+        for cut in [0, 1, 2, crate::stream::syntax::TEXTURE_FIXED - 1, crate::stream::syntax::TEXTURE_FIXED, bytes.len() - 1] {
             assert!(matches!(read_texture_payload(&bytes[..cut]), Err(Error::Decode { .. })), "{cut}");
         }
         let mut newer_short = vec![9u8; 4];

@@ -5,7 +5,7 @@
 //! this module only lays them out and checks the fields, which [`syntax`](super::syntax)
 //! declares (`TEXTURE_PAYLOAD`).
 
-use crate::error::Corrupt;
+use crate::error::{Corrupt, Error};
 use crate::stream::syntax::{TEXTURE_FIXED as FIXED, TEXTURE_FRAMES_MIN, UV_BITS_MAX, UV_BITS_MIN};
 pub use crate::stream::syntax::{MAX_SIDE, MIN_SIDE, TEXTURE_CODECS, TEXTURE_PAYLOAD_VERSION};
 
@@ -46,10 +46,13 @@ impl TexturePayload {
     }
 
     /// Parses a payload; the error names what is wrong, in the words the JavaScript reader
-    /// (`web/src/texture/unit.js`) uses.
-    pub fn read(data: &[u8]) -> Result<Self, Corrupt> {
+    /// (`web/src/texture/unit.js`) uses: [`Error::Unsupported`] for a payload of another
+    /// version or an unknown codec (checked once the fixed fields are there), else
+    /// [`Error::Decode`] without a place (the caller knows where the unit lies).
+    pub fn read(data: &[u8]) -> Result<Self, Error> {
+        let corrupt = |reason: String| Error::from(Corrupt(reason));
         if data.len() < FIXED {
-            return Err("texture unit is truncated".into());
+            return Err(corrupt("texture unit is truncated".into()));
         }
         let u32_at = |i: usize| u32::from_le_bytes([data[i], data[i + 1], data[i + 2], data[i + 3]]);
         // The fixed fields, in the order and widths of `TEXTURE_PAYLOAD`.
@@ -65,17 +68,17 @@ impl TexturePayload {
         let uv_bits = next(1)[0];
         let frames = u32::from_le_bytes(next(4).try_into().expect("four bytes"));
         if version != TEXTURE_PAYLOAD_VERSION {
-            return Err(format!("texture unit version {version} is not supported").into());
+            return Err(Error::Unsupported(format!("texture unit version {version} is not supported")));
         }
         if codec as usize >= TEXTURE_CODECS.len() {
-            return Err(format!("unknown texture codec {codec}").into());
+            return Err(Error::Unsupported(format!("unknown texture codec {codec}")));
         }
         let side_ok = |s: u16| (MIN_SIDE..=MAX_SIDE).contains(&s) && s % 2 == 0;
         if !side_ok(width) || !side_ok(height) {
-            return Err(format!("texture size {width} x {height} is out of range").into());
+            return Err(corrupt(format!("texture size {width} x {height} is out of range")));
         }
         if !(UV_BITS_MIN..=UV_BITS_MAX).contains(&uv_bits) || frames < TEXTURE_FRAMES_MIN {
-            return Err("texture unit has invalid UV bits or frame count".into());
+            return Err(corrupt("texture unit has invalid UV bits or frame count".into()));
         }
         let mut pos = FIXED;
         let mut block = |what: &str| -> Result<Vec<u8>, Corrupt> {
@@ -91,7 +94,7 @@ impl TexturePayload {
         };
         let (atlas, video) = (block("atlas")?, block("video")?);
         if pos != data.len() {
-            return Err("unexpected bytes at the end of the texture unit".into());
+            return Err(corrupt("unexpected bytes at the end of the texture unit".into()));
         }
         Ok(Self { codec, width, height, uv_bits, frames, atlas, video })
     }
@@ -116,7 +119,7 @@ mod tests {
     #[test]
     fn every_damage_is_named() {
         let bytes = example().to_bytes();
-        let error = |data: &[u8]| TexturePayload::read(data).unwrap_err().0;
+        let error = |data: &[u8]| TexturePayload::read(data).unwrap_err().to_string();
         let with = |i: usize, v: u8| {
             let mut b = bytes.clone();
             b[i] = v;
