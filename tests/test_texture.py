@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 
@@ -349,3 +351,22 @@ def test_a_texture_that_fails_on_its_thread_names_its_frame_and_stops_the_thread
 
     assert not [t for t in threading.enumerate() if t.name.startswith("dynmesh-texture")]
     assert capfd.readouterr().err == ""  # the video of the unfinished group was ended quietly
+
+
+def test_steps_that_hold_the_gil_wait_until_the_caller_is_in_the_geometry_core(textured_sequence):
+    # xatlas holds the GIL for all of an atlas: made while the caller runs Python between
+    # frames, it would stall the caller. The texture thread waits until the caller enters
+    # the geometry core (or waits for the thread) to make it.
+    m = textured_sequence[0]
+    tex = texture.TextureEncoder(0, {"texture_size": 64, "texture_qp": 30})  # no subdivision: base = surface
+    try:
+        tex.add(True, m, m, m)
+        time.sleep(0.3)
+        assert tex._group is None  # the atlas waits ...
+        with tex.geometry():
+            tex._measured.result(timeout=60)  # ... and is made once the caller is away
+        assert tex._group is not None
+        [(first, unit)] = tex.finish()
+        assert first == 0 and texture.unpack_group(unit).frames == 1
+    finally:
+        tex.close()

@@ -21,10 +21,11 @@ from . import _core
 from ._core import InputError, InternalError, UnsupportedError
 from . import texture as _texture
 from .defaults import FrameType
+from .io.image import image_of
 from .io.meshio import _atomic_write
 from .mesh import Mesh
 from .errors import with_frame
-from .encoding import (DEFAULTS, EncodeResult, _encoder, _given_texture, _image_of, _peek, _split_options,
+from .encoding import (DEFAULTS, EncodeResult, _encoder, _given_texture, _peek, _split_options,
                        encode_units, texture_encoder)
 
 
@@ -276,8 +277,8 @@ def _frame_metrics(r: Mesh, d: Mesh, textured: bool, lo, hi, peak: float, grid_s
     """One frame's figures; ValueError when there is nothing to measure or too much to sample."""
     if textured:
         return dict(_core.textured_distortion(
-            r.positions, r.faces, r.uvs, _uv_faces(r), _image_of(r),
-            d.positions, d.faces, d.uvs, _uv_faces(d), _image_of(d),
+            r.positions, r.faces, r.uvs, _uv_faces(r), image_of(r),
+            d.positions, d.faces, d.uvs, _uv_faces(d), image_of(d),
             lo.tolist(), hi.tolist(), peak, grid_size))
     d1, d2, p1, p2 = _core.mesh_distortion(r.positions, r.faces, d.positions, d.faces,
                                            lo.tolist(), hi.tolist(), peak, grid_size)

@@ -4,6 +4,7 @@ they share (the options split and checked, the core encoder, the texture stage).
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
@@ -14,7 +15,6 @@ from . import _core
 from . import texture as _texture
 from .defaults import ENCODER, FrameType
 from .errors import with_frame
-from .io import read_image
 from .mesh import Mesh
 
 #: Encoder defaults, as the Rust core defines them; ``dynmesh encode --help`` documents each.
@@ -33,10 +33,6 @@ class EncodeResult:
     #: The texture options the stream was coded with, those left to the encoder chosen
     #: (None for an untextured stream).
     texture_options: dict | None = None
-
-
-def _image_of(m: Mesh) -> np.ndarray:
-    return m.image if m.image is not None else read_image(m.texture)
 
 
 def texture_encoder(opts: dict, texture_options: dict, keep: bool, first_frame: int = 0) -> _texture.TextureEncoder:
@@ -95,13 +91,14 @@ def encode_units(enc: _core.Encoder, tex: _texture.TextureEncoder | None, meshes
             if i >= count:
                 raise ValueError(f"more than the {count} frames announced")
             try:
-                unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces, tex and tex.cost)
+                with tex.geometry() if tex else contextlib.nullcontext():
+                    unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces,
+                                                                                         tex and tex.cost)
                 stats["type"] = FrameType(stats["type"])
-                image = _image_of(m) if tex else None
             except ValueError as e:
                 raise with_frame(e, i) from None
             if tex:  # its errors name their frame
-                tex.add(stats["starts_texture_group"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
+                tex.add(stats["starts_texture_group"], Mesh(base_pos, base_faces), Mesh(pos, faces), m)
             units.append(unit)
             result.frames.append(stats)
             if keep_reconstructions:

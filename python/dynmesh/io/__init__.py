@@ -16,7 +16,7 @@ from .._lazy import lazy_names as _lazy_names
 
 _HOMES = {
     "MeshError": "errors", "MeshWarning": "meshio", "read_mesh": "meshio", "write_mesh": "meshio",
-    "read_image": "image", "write_image": "meshio",
+    "read_image": "image", "image_of": "image", "write_image": "meshio",
     "glb_bytes": "gltf",
     "SequenceError": "sequence", "natural_key": "sequence", "resolve_sequence": "sequence",
     "InputClobberError": "safety", "StagedDirectory": "safety", "mesh_inputs": "safety", "refuse_inputs": "safety",

@@ -11,9 +11,14 @@ import numpy as np
 from .. import _core
 from .errors import MeshError
 
-__all__ = ["read_image", "decode_image"]
+__all__ = ["read_image", "decode_image", "image_of"]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def image_of(mesh) -> np.ndarray:
+    """The texture of a ``Mesh``: its ``image``, or else its ``texture`` file read."""
+    return mesh.image if mesh.image is not None else read_image(mesh.texture)
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:

@@ -17,6 +17,8 @@ texture unit payload).
 from __future__ import annotations
 
 import bisect
+import contextlib
+import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 
@@ -25,6 +27,7 @@ import numpy as np
 from .. import _core
 from ..defaults import TEXTURE, texture_qp_for
 from ..errors import with_frame
+from ..io import image_of
 from ..mesh import Mesh
 from . import atlas, video
 
@@ -128,14 +131,22 @@ ESTIMATE_PRESET = {"av1": 10}
 PREDICTED_SHARE = {"av1": 0.05, "hevc": 0.2}
 
 
+#: Seconds the texture thread waits for the caller to enter the geometry core before it runs
+#: a step that holds the GIL anyway (between two frames the caller needs a few hundredths).
+GIL_PATIENCE = 1.0
+
+
 class TextureEncoder:
     """Builds the texture units of a stream frame by frame (see the module documentation).
 
     Call ``add`` after each geometry frame and ``finish`` after the last: it gives every
     group's ``(first frame, texture unit)``. ``add`` only queues the frame: its texture is
     transferred and coded on a thread of its own while the caller codes the next frame's
-    geometry (the core and the video codec work without the GIL), and ``cost`` waits for it
-    when the next decision needs what it measures. ``keep_images`` keeps the decoded texture
+    geometry, and ``cost`` waits for it when the next decision needs what it measures. The
+    core works without the GIL, but xatlas and PyAV hold it (xatlas for all of an atlas,
+    a third of a second; PyAV while it opens and feeds the video encoder): the thread runs
+    those steps only while the caller is in the geometry core (``geometry``) or waits for the
+    thread, so that they do not stall the caller's own Python between frames. ``keep_images`` keeps the decoded texture
     of every frame (``images``), which costs decoding each video once. ``first_frame``, the
     stream index of the first frame added, names frames in error messages."""
 
@@ -165,6 +176,27 @@ class TextureEncoder:
         self._queued: list[Future] = []
         self._measured: Future | None = None  # the last frame's transfer (and measure)
         self._closed = False
+        # Set while the caller needs no GIL: it is in the geometry core or waits for us.
+        self._caller_away = threading.Event()
+        # PyAV takes a tenth of a second to import, holding the GIL: done at the first chance.
+        self._queued.append(self._worker.submit(self._holding_gil, lambda: __import__("av")))
+
+    @contextlib.contextmanager
+    def geometry(self):
+        """Wraps the caller's call into the geometry core (which releases the GIL): the
+        texture thread's steps that hold the GIL run meanwhile."""
+        self._caller_away.set()
+        try:
+            yield
+        finally:
+            self._caller_away.clear()
+
+    def _holding_gil(self, step, *args, **kwargs):
+        """``step(*args, **kwargs)``, a step that holds the GIL throughout, once the caller
+        does not need it (or after ``GIL_PATIENCE`` seconds: a caller that never enters
+        ``geometry`` only loses the overlap)."""
+        self._caller_away.wait(GIL_PATIENCE)
+        return step(*args, **kwargs)
 
     def cost(self) -> tuple[float, float] | None:
         """(bytes, bytes): what the texture of the next frame adds when the frame continues
@@ -185,17 +217,18 @@ class TextureEncoder:
             self._settled_cost = cost
         return cost
 
-    def add(self, starts_group: bool, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> None:
+    def add(self, starts_group: bool, base: Mesh, reconstruction: Mesh, source: Mesh) -> None:
         """Queues a coded frame's texture: ``starts_group`` whether the frame starts a texture
         group (the geometry encoder decides it: the frame statistic ``starts_texture_group``),
         ``base`` its decoded base mesh, ``reconstruction`` the surface the decoder shows,
-        ``source`` and ``image`` the input frame and texture."""
+        ``source`` the input frame with its texture (``image``, or read from ``texture`` on
+        the thread)."""
         self._raise_failure()
         starts = starts_group or self._length == 0
         if starts:
             self._length, self._settled_cost = 0, None
         self._length += 1
-        self._measured = self._worker.submit(self._add, self._frames, starts, base, reconstruction, source, image)
+        self._measured = self._worker.submit(self._add, self._frames, starts, base, reconstruction, source)
         self._queued += [self._measured, self._worker.submit(self._to_video, self._frames, self._measured)]
         self._frames += 1
 
@@ -219,6 +252,7 @@ class TextureEncoder:
         self._closed = True
         for f in self._queued:
             f.cancel()
+        self._caller_away.set()  # for good: the caller codes no more geometry
         self._worker.submit(self._abandon)
         self._worker.shutdown(wait=True)
 
@@ -231,24 +265,31 @@ class TextureEncoder:
 
     def _wait(self, until: Future | None = None) -> None:
         """Waits for the queued work (up to ``until``, in order) and raises its first error."""
-        while self._queued:
-            f = self._queued.pop(0)
-            f.result()
-            if f is until:
-                return
+        away = self._caller_away.is_set()
+        self._caller_away.set()
+        try:
+            while self._queued:
+                f = self._queued.pop(0)
+                f.result()
+                if f is until:
+                    return
+        finally:
+            if not away:
+                self._caller_away.clear()
 
     def _raise_failure(self) -> None:
         """Raises a queued frame's error as soon as it is known, rather than at the next wait."""
         if any(f.done() and f.exception() is not None for f in self._queued):
             self._wait()
 
-    def _add(self, index: int, starts: bool, base: Mesh, reconstruction: Mesh, source: Mesh, image: np.ndarray) -> np.ndarray:
+    def _add(self, index: int, starts: bool, base: Mesh, reconstruction: Mesh, source: Mesh) -> np.ndarray:
         """The frame's texture in its group's atlas (a new group's atlas made first), its cost
         measured while the group's first two frames are."""
         try:
+            image = image_of(source)
             if starts:
                 self._close()
-                data, uv_faces, uv = atlas.coded_atlas(base.positions, base.faces, self.size)
+                data, uv_faces, uv = self._holding_gil(atlas.coded_atlas, base.positions, base.faces, self.size)
                 uv, uv_faces = _core.subdivide_uv(uv, uv_faces, self.subdiv)
                 self._group = _Group(index, data, uv, uv_faces, video.VideoEncoder(self.codec, self.qp))
             g = self._group
@@ -270,14 +311,15 @@ class TextureEncoder:
         which ``cost`` does not wait for."""
         texture = transferred.result()  # its error, already naming the frame, is raised first anyway
         try:
-            self._group.video.add(texture)
+            self._holding_gil(self._group.video.add, texture)
         except ValueError as e:
             raise with_frame(e, self._first_frame + index) from None
 
     def _measure(self, g: _Group, texture: np.ndarray) -> None:
         """The group's intra and predicted video bytes, from its first two images."""
         g.estimated.append(texture)
-        coded = len(video.encode_video(g.estimated, self.codec, self.qp, preset=ESTIMATE_PRESET.get(self.codec)))
+        coded = len(self._holding_gil(video.encode_video, g.estimated, self.codec, self.qp,
+                                      preset=ESTIMATE_PRESET.get(self.codec)))
         if g.intra_bytes is None:
             g.intra_bytes = coded
         else:
@@ -288,9 +330,9 @@ class TextureEncoder:
         g, self._group = self._group, None
         if g is None:
             return
-        data = g.video.finish()
+        data = self._holding_gil(g.video.finish)
         if self.keep_images:
-            self.images.extend(video.decode_video(data, self.codec))
+            self.images.extend(self._holding_gil(list, video.decode_video(data, self.codec)))
         header = GroupHeader(self.codec, self.size, self.size, atlas.UV_BITS, g.video.frames, g.atlas, data)
         self._units.append((g.first, pack_group(header)))
 
