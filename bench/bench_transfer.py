@@ -51,7 +51,7 @@ def transfer_inputs(sequence: str, frames: int) -> list[tuple]:
     ``TextureEncoder.add``, which makes the group's atlas), the atlas read back from it."""
     from dynmesh import api
     from dynmesh import texture as _texture
-    from dynmesh.io import read_image, read_mesh, resolve_sequence
+    from dynmesh.io import image_of, read_mesh, resolve_sequence
     from dynmesh.mesh import Mesh
 
     paths = resolve_sequence(str(SHARED_DATA / sequence / "*.obj"))[:frames]
@@ -63,10 +63,10 @@ def transfer_inputs(sequence: str, frames: int) -> list[tuple]:
     tex = _texture.TextureEncoder(opts["subdiv"], texture_options, False, estimate_costs=opts["intra_period"] > 1)
     coded = []
     for m in meshes:
-        _, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces, tex.cost)
-        image = m.image if m.image is not None else read_image(m.texture)
-        tex.add(stats["starts_texture_group"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, image)
-        coded.append((pos, faces, m, image))
+        with tex.geometry():
+            _, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces, tex.cost)
+        tex.add(stats["starts_texture_group"], Mesh(base_pos, base_faces), Mesh(pos, faces), m)
+        coded.append((pos, faces, m, image_of(m)))
     tex.finish()
     return [(pos, faces, uv, uv_faces, m.positions, m.faces, m.uvs, m.uv_faces, image, size, size)
             for (pos, faces, m, image), (uv, uv_faces) in zip(coded, tex.uvs)]

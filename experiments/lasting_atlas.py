@@ -31,6 +31,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 import dynmesh
+from dynmesh.io import image_of
 from dynmesh import _core, api, texture
 from dynmesh.eval.report import bd_rate
 from dynmesh.mesh import Mesh
@@ -227,7 +228,7 @@ def rd(seq: str, count: int, modes: list[str], texture_qps: list[int]) -> None:
             atlas_bytes += len(data)
             uv, uv_faces = _core.subdivide_uv(uv, uv_faces, api.DEFAULTS["subdiv"])
             image, _ = _core.transfer_texture(rec.positions, rec.faces, uv, uv_faces, m.positions, m.faces,
-                                              m.uvs, m.uv_faces, api._image_of(m), size, size)
+                                              m.uvs, m.uv_faces, image_of(m), size, size)
             r = Mesh(rec.positions, rec.faces)
             r.uvs, r.uv_faces = uv, uv_faces
             recs.append(r)

@@ -14,6 +14,7 @@ import csv
 import sys
 
 import dynmesh
+from dynmesh.io import image_of
 from dynmesh import api
 from dynmesh.mesh import Mesh
 from dynmesh.texture import video
@@ -26,7 +27,7 @@ def main() -> int:
     seq = sys.argv[1] if len(sys.argv) > 1 else "liam_textured"
     qps = [int(q) for q in (sys.argv[2] if len(sys.argv) > 2 else "22,29,35,41").split(",")]
     source = dynmesh.read_mesh(sorted((hull.SHARED / "data" / seq).glob("*.obj"))[0])
-    image = api._image_of(source)
+    image = image_of(source)
     print(f"{seq}, frame 0's source texture ({image.shape[1]} x {image.shape[0]}) on its own mesh:")
     for codec in ("hevc", "av1"):
         for qp in qps:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import json
 import sys
 import time
@@ -29,6 +30,7 @@ import numpy as np
 import dynmesh
 from dynmesh import _core, api, texture
 from dynmesh.eval.report import bd_rate
+from dynmesh.io import image_of
 from dynmesh.mesh import Mesh
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -54,7 +56,8 @@ def geometry_pass(frames: list[Mesh], qp: int, options: dict) -> tuple[int, list
     for m in frames:
         unit, stats, (pos, faces), (base_pos, base_faces) = enc.encode_frame(m.positions, m.faces)
         nbytes += len(unit)
-        kept.append((stats["starts_texture_group"], Mesh(base_pos, base_faces), Mesh(pos, faces), m, api._image_of(m)))
+        source = dataclasses.replace(m, image=image_of(m))  # read once, for every texture pass
+        kept.append((stats["starts_texture_group"], Mesh(base_pos, base_faces), Mesh(pos, faces), source))
     return nbytes, kept
 
 
@@ -65,7 +68,7 @@ def texture_pass(kept: list[tuple], subdiv: int, tex_options: dict) -> tuple[int
         tex.add(*k)
     nbytes = sum(len(_core.texture_unit(unit)) for _, unit in tex.finish())
     out = [Mesh(r.positions, r.faces, uvs=uv, uv_faces=uvf, image=img)
-           for (_, _, r, _, _), (uv, uvf), img in zip(kept, tex.uvs, tex.images)]
+           for (_, _, r, _), (uv, uvf), img in zip(kept, tex.uvs, tex.images)]
     return nbytes, out
 
 
