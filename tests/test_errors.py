@@ -89,6 +89,22 @@ def test_a_malformed_mesh_is_an_input_error(sphere):
     assert stats["type"] == "I" and len(unit) > 0
 
 
+def test_an_encoder_stops_after_a_frame_that_failed_half_way(sphere):
+    # A texture cost that raises, asked once the frame's predicted candidate is built, leaves
+    # a frame the caller never receives: the encoder refuses to code on after it.
+    lo, hi = sphere.bounds()
+    enc = _core.Encoder(3, lo.tolist(), hi.tolist(), {})
+    enc.encode_frame(sphere.positions, sphere.faces)
+
+    def broken():
+        raise RuntimeError("texture thread failed")
+
+    with pytest.raises(RuntimeError, match="texture thread failed"):
+        enc.encode_frame(sphere.positions, sphere.faces, broken)
+    with pytest.raises(_core.InputError, match="stopped at frame 1, whose texture cost raised"):
+        enc.encode_frame(sphere.positions, sphere.faces)
+
+
 def test_options_and_arguments_out_of_range_are_input_errors(sphere, small_stream):
     with pytest.raises(dynmesh.InputError):
         dynmesh.encode([sphere], qp=10_000)

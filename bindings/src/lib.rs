@@ -128,6 +128,9 @@ const DROPPED_SHARE_WARNED: usize = 10;
 #[pyclass(module = "dynmesh._core")]
 struct Encoder {
     inner: SequenceEncoder,
+    /// Why the encoder codes no more frames: a frame failed after its coding had begun, so
+    /// its state may hold a frame the caller never received.
+    stopped: Option<String>,
 }
 
 #[pymethods]
@@ -136,7 +139,7 @@ impl Encoder {
     fn new(frame_count: u32, box_min: [f64; 3], box_max: [f64; 3], options: &Bound<'_, PyDict>) -> PyResult<Self> {
         let config = options::config_of(options)?;
         let inner = guarded(|| SequenceEncoder::new(config, frame_count, box_min, box_max))?.map_err(core_error)?;
-        Ok(Self { inner })
+        Ok(Self { inner, stopped: None })
     }
 
     /// Makes the next frame frame `index`, which must start a group (a multiple of the
@@ -156,7 +159,9 @@ impl Encoder {
     /// frame that keeps its texture group's atlas and for one that starts a group, or a
     /// callable that returns them (or None), called once the predicted candidate is built
     /// (`SequenceEncoder::encode_textured`); None: geometry alone. Raises InputError for a
-    /// mesh the encoder refuses.
+    /// mesh the encoder refuses (the encoder is then as before the call). After an
+    /// InternalError, or an error raised by `texture_cost`, the frame may be half coded: every
+    /// later call raises InputError saying where the encoder stopped.
     #[pyo3(signature = (positions, faces, texture_cost=None))]
     #[allow(clippy::type_complexity)]
     fn encode_frame<'py>(
@@ -166,6 +171,9 @@ impl Encoder {
         faces: PyReadonlyArray2<'py, i64>,
         texture_cost: Option<Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, PyBytes>, Bound<'py, PyDict>, MeshArrays<'py>, MeshArrays<'py>)> {
+        if let Some(why) = &self.stopped {
+            return Err(input_error(format!("this encoder stopped at {why}; it codes no more frames")));
+        }
         let mesh = mesh_of(&positions, &faces)?;
         let frame = self.inner.next_frame();
         let inner = &mut self.inner;
@@ -179,10 +187,18 @@ impl Encoder {
                     None
                 })
             })
-        })?;
-        if let Some(e) = failed {
-            return Err(e);
-        }
+        });
+        let out = match (out, failed) {
+            (Ok(out), None) => out,
+            (Err(e), _) => {
+                self.stopped = Some(format!("frame {frame} after an internal error"));
+                return Err(e);
+            }
+            (Ok(_), Some(e)) => {
+                self.stopped = Some(format!("frame {frame}, whose texture cost raised an error"));
+                return Err(e);
+            }
+        };
         let out = out.map_err(core_error)?;
         let dropped = out.stats.dropped_faces;
         if dropped > 0 && dropped >= mesh.faces.len() / DROPPED_SHARE_WARNED {
