@@ -105,6 +105,15 @@ def test_an_encoder_stops_after_a_frame_that_failed_half_way(sphere):
         enc.encode_frame(sphere.positions, sphere.faces)
 
 
+def test_a_frame_the_stream_does_not_have_is_an_input_error_not_damage(small_stream):
+    dec = _core.Decoder(small_stream)
+    n = dec.frame_count
+    for ask in (lambda: dec.decode_frame(n), lambda: dec.frame_info(n), lambda: dec.texture_payload(n)):
+        with pytest.raises(_core.InputError, match=f"frame {n} does not exist: the stream has {n} frames?$"):
+            ask()
+    assert len(dec.decode_frame(n - 1)[0]) > 0  # the decoder goes on
+
+
 def test_options_and_arguments_out_of_range_are_input_errors(sphere, small_stream):
     with pytest.raises(dynmesh.InputError):
         dynmesh.encode([sphere], qp=10_000)

@@ -78,7 +78,7 @@ export class Decoder {
   }
 
   unit(index) {
-    if (!(index >= 0 && index < this.units.length)) throw new DecodeError(index, 0, 'no such frame');
+    if (!(index >= 0 && index < this.units.length)) throw new RangeError(`frame ${index} does not exist: the stream has ${this.units.length} frame${this.units.length === 1 ? '' : 's'}`);
     return this.units[index];
   }
 

@@ -70,3 +70,11 @@ test('the output face allowance is the Rust decoder\'s (docs/bitstream.md sectio
   assert.equal(faceAllowance(4096), 4096 * 512);
   assert.equal(faceAllowance(2 ** 30), 2 ** 23);
 });
+
+test('a frame the stream does not have is a RangeError, not damage', () => {
+  const dec = new Decoder(data);
+  const n = dec.frameCount;
+  assert.throws(() => dec.decodeFrame(n), (e) => e instanceof RangeError && e.message === `frame ${n} does not exist: the stream has ${n} frame${n === 1 ? '' : 's'}`);
+  assert.throws(() => dec.decodeFrame(-1), RangeError);
+  assert.ok(dec.decodeFrame(n - 1));
+});

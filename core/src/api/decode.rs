@@ -76,32 +76,45 @@ impl Decoder {
 
     /// Type, reference, QP and sizes of frame `index`, without decoding it.
     ///
-    /// Errors: [`Error::Decode`] for a damaged unit or an index beyond the frame count.
+    /// Errors: [`Error::Input`] for an index beyond the frame count; [`Error::Decode`] for a
+    /// damaged unit.
     pub fn frame_info(&self, index: u32) -> Result<FrameInfo, Error> {
-        Ok(self.inner.frame_info(index)?)
+        Ok(self.inner.frame_info(self.existing(index)?)?)
     }
 
     /// Decodes frame `index` into a mesh in the input's units.
     ///
-    /// Errors: [`Error::Decode`] when the frame, or a frame of its reference chain, cannot
-    /// be decoded (named in the message), or for an index beyond the frame count.
+    /// Errors: [`Error::Input`] for an index beyond the frame count; [`Error::Decode`] when
+    /// the frame, or a frame of its reference chain, cannot be decoded (named in the message).
     pub fn decode_frame(&mut self, index: u32) -> Result<Mesh, Error> {
-        Ok(self.inner.decode_frame(index)?)
+        Ok(self.inner.decode_frame(self.existing(index)?)?)
     }
 
     /// The payload of frame `index`'s texture unit and its offset in the stream; None when the
     /// frame has none.
     ///
-    /// Errors: [`Error::Decode`] when the texture unit is damaged or the index is beyond the
-    /// frame count.
+    /// Errors: [`Error::Input`] for an index beyond the frame count; [`Error::Decode`] when
+    /// the texture unit is damaged.
     pub fn texture_payload(&self, index: u32) -> Result<Option<(&[u8], u64)>, Error> {
-        Ok(self.inner.texture_payload(index)?)
+        Ok(self.inner.texture_payload(self.existing(index)?)?)
     }
 
     /// The frame index and base mesh (in the input's units) of the frame decoded last: the
     /// texture atlas of an intra frame is coded on it. None before the first decode.
     pub fn last_base(&self) -> Option<(u32, Mesh)> {
         self.inner.last_base()
+    }
+
+    /// `index`, if the stream has such a frame: asking for another is the caller's mistake,
+    /// not damage in the stream.
+    fn existing(&self, index: u32) -> Result<u32, Error> {
+        let count = self.frame_count();
+        if index < count {
+            Ok(index)
+        } else {
+            let frames = if count == 1 { "frame" } else { "frames" };
+            Err(Error::Input(format!("frame {index} does not exist: the stream has {count} {frames}")))
+        }
     }
 }
 
@@ -200,6 +213,7 @@ mod tests {
         assert!(matches!(Decoder::new(data[..data.len() - 3].to_vec()), Err(Error::Decode { frame: Some(0), .. })));
         let mut d = Decoder::new(data).unwrap();
         assert!(matches!(d.set_lod(9), Err(Error::Input(_))));
-        assert!(matches!(d.decode_frame(5), Err(Error::Decode { frame: Some(5), .. })));
+        // A frame the stream does not have is the caller's mistake, not damage.
+        assert!(matches!(d.decode_frame(5), Err(Error::Input(m)) if m == "frame 5 does not exist: the stream has 1 frame"));
     }
 }
