@@ -115,3 +115,18 @@ def test_a_part_no_reference_covers_is_refreshed_inside_a_predicted_frame():
     off = dynmesh.encode_frames(frames, refresh=False, **options)
     assert off.frames[1]["type"] == "I" and all(f["refreshed_faces"] == 0 for f in off.frames)
     assert r.frames[1]["bytes"] < off.frames[1]["bytes"]
+
+
+def test_always_try_intra_codes_every_predicted_frame_intra_too_and_decodes_bit_exactly():
+    # By default a predicted frame that beats the last intra frame is kept without coding
+    # this frame intra (its stats then report no rejected candidate); with always_try_intra
+    # each one is weighed against its own intra frame, whose bytes it reports.
+    frames = gear_sequence(5, turn_degrees=5.0, samples=600)
+    quick = dynmesh.encode_frames(frames)
+    thorough = dynmesh.encode_frames(frames, keep_reconstructions=True, always_try_intra=True)
+    predicted = [f for f in quick.frames if f["type"] == "P"]
+    assert predicted and any(f["rejected_bytes"] == 0 for f in predicted)
+    thorough_predicted = [f for f in thorough.frames if f["type"] == "P"]
+    assert thorough_predicted and all(f["rejected_bytes"] > 0 for f in thorough_predicted)
+    for r, d in zip(thorough.reconstructions, dynmesh.decode(thorough.data)):
+        assert np.array_equal(r.positions, d.positions) and np.array_equal(r.faces, d.faces)

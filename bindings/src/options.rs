@@ -79,6 +79,7 @@ const OPTIONS: &[Opt] = &[
     field!("refresh", config.search.refresh),
     field!("references", config.search.references),
     field!("intra_reference", config.search.intra_reference),
+    field!("always_try_intra", config.search.always_try_intra),
     named!("lifting", config.format.lifting, |l: &LiftingChoice| l.name(), lifting_of),
     field!("aq", aq_on),
     field!("aq_alpha", aq.alpha),

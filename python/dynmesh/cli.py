@@ -561,6 +561,11 @@ def parser() -> argparse.ArgumentParser:
                         f"(1 to {MAX_REFERENCES}; default {d['references']}: the previous frame)")
     p.add_argument("--intra-reference", action=argparse.BooleanOptionalAction, default=d["intra_reference"],
                    help="reference choice: the group's latest intra frame may be the reference too (default: %(default)s)")
+    p.add_argument("--always-try-intra", action=argparse.BooleanOptionalAction, default=d["always_try_intra"],
+                   help="intra/inter decision: code every predicted frame intra too and try its refresh before "
+                        "choosing, instead of keeping a predicted frame that beats the last intra frame unseen; "
+                        "0-7 %% fewer bytes at the same D1 on the shared captures, for 1.2-2.7x the encode time (ours; "
+                        "default: %(default)s)")
     p.add_argument("--rd-slope", type=float, default=d["rd_slope"],
                    help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
                         f"intra (default {d['rd_slope']:g})")

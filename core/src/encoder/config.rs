@@ -112,6 +112,11 @@ pub struct SearchParams {
     pub references: u32,
     /// Predicted frames may also refer to the group's latest intra frame (same rule).
     pub intra_reference: bool,
+    /// Code every predicted frame intra too, and try its refresh, before deciding (ours).
+    /// Off, a predicted frame that beats the last intra frame's rate and distortion is kept
+    /// without coding this frame intra, which spares most frames a second encoding but keeps
+    /// some that their own intra frame or refresh would beat.
+    pub always_try_intra: bool,
 }
 
 impl Default for FormatParams {
@@ -143,6 +148,7 @@ impl Default for SearchParams {
             refresh: true,
             references: 1,
             intra_reference: true,
+            always_try_intra: false,
         }
     }
 }

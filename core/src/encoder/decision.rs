@@ -16,9 +16,10 @@ impl SequenceEncoder {
     /// PSNR margin whatever the rates; here the PSNR the predicted frame loses is weighed
     /// against the rate it saves, at the exchange rate `rd_slope_db`. The predicted frame is
     /// first held against the last intra frame's (rate, distortion); only when it loses
-    /// there is this frame also coded intra, and the predicted frame with its worst-fitting
-    /// regions refreshed from the intra candidate's base ([`Self::refreshed`]) tried in its
-    /// place when it costs less; this spares most predicted frames a second encoding.
+    /// there (or always, with `always_try_intra`) is this frame also coded intra, and the
+    /// predicted frame with its worst-fitting regions refreshed from the intra candidate's
+    /// base ([`Self::refreshed`]) tried in its place when it costs less; the shortcut spares
+    /// most predicted frames a second encoding.
     /// `texture_cost` gives what the frame's texture adds ([`TextureCost`]).
     pub(super) fn choose(
         &mut self,
@@ -39,7 +40,7 @@ impl SequenceEncoder {
             self.last_intra = measured.then_some((i.candidate.payload.len(), i.candidate.distortion));
             return Ok((i, 0));
         };
-        if let Some((bytes, di)) = self.last_intra {
+        if let Some((bytes, di)) = self.last_intra.filter(|_| !self.config.search.always_try_intra) {
             if self.rd_prefers(self.frame_bytes(&p, texture), p.candidate.distortion, bytes + texture_bytes(texture, true), di) {
                 return Ok((p, 0));
             }
