@@ -146,9 +146,10 @@ class TextureEncoder:
     core works without the GIL, but xatlas and PyAV hold it (xatlas for all of an atlas,
     a third of a second; PyAV while it opens and feeds the video encoder): the thread runs
     those steps only while the caller is in the geometry core (``geometry``) or waits for the
-    thread, so that they do not stall the caller's own Python between frames. ``keep_images`` keeps the decoded texture
-    of every frame (``images``), which costs decoding each video once. ``first_frame``, the
-    stream index of the first frame added, names frames in error messages."""
+    thread, so that they do not stall the caller's own Python between frames.
+    ``keep_images`` keeps the decoded texture of every frame (``images``), which costs
+    decoding each video once. ``first_frame``, the stream index of the first frame added,
+    names frames in error messages."""
 
     def __init__(self, subdiv: int, options: dict, keep_images: bool = False, estimate_costs: bool = False,
                  first_frame: int = 0):
