@@ -521,7 +521,7 @@ def test_image_write_failures_name_the_file_and_leave_nothing(tmp_path):
     assert (tmp_path / "old.png").read_bytes() == b"old" and [p.name for p in tmp_path.iterdir()] == ["old.png"]
 
 
-@pytest.mark.parametrize("mode", ["RGB", "RGBA", "L", "LA", "P", "P+transparency", "1", "I;16", "JPEG"])
+@pytest.mark.parametrize("mode", ["RGB", "RGBA", "L", "LA", "P", "P+transparency", "1", "JPEG"])
 def test_read_image_gives_what_pillow_gives(tmp_path, mode):
     """8-bit PNGs are decoded by the core, the rest by Pillow: the pixels are Pillow's either way."""
     from PIL import Image
@@ -532,8 +532,6 @@ def test_read_image_gives_what_pillow_gives(tmp_path, mode):
         rgb.save(path, quality=90)
     elif mode == "P+transparency":
         rgb.quantize(37).save(path, transparency=3)
-    elif mode == "I;16":
-        Image.fromarray((np.asarray(rgb.convert("L")).astype(np.uint16) * 251)).save(path)
     elif mode == "RGBA":
         a = rgb.copy()
         a.putalpha(Image.fromarray(noisy_image(seed=5)[..., 0]))
@@ -545,6 +543,23 @@ def test_read_image_gives_what_pillow_gives(tmp_path, mode):
     got = mesh_io.read_image(path)
     assert got.dtype == np.uint8 and got.flags.c_contiguous and got.flags.writeable
     assert np.array_equal(got, pillow_rgb(path))
+
+
+def test_16_bit_grey_images_are_scaled_to_8_bits_not_clipped(tmp_path):
+    """Pillow opens a 16-bit grey PNG in a mode whose conversion to RGB clips at 255, which
+    made a dark texture white; the values are scaled instead (and 16-bit colour, which
+    Pillow reduces itself, agrees)."""
+    from PIL import Image
+
+    grey16 = (np.arange(64 * 48, dtype=np.uint32).reshape(48, 64) * 21).astype(np.uint16)
+    Image.fromarray(grey16).save(tmp_path / "g.png")
+    got = mesh_io.read_image(tmp_path / "g.png")
+    expected = np.rint(grey16 / 257.0).astype(np.uint8)
+    assert got.shape == (48, 64, 3) and got.dtype == np.uint8
+    assert all(np.array_equal(got[..., k], expected) for k in range(3))
+    with pytest.raises(MeshError, match="floating-point"):
+        Image.fromarray(grey16.astype(np.float32)).save(tmp_path / "f.tif")
+        mesh_io.read_image(tmp_path / "f.tif")
 
 
 def test_unreadable_images_are_mesh_errors_naming_the_file(tmp_path):

@@ -59,6 +59,23 @@ def _pillow_image(source, path: Path) -> np.ndarray:
 
     try:
         with Image.open(source) as im:
-            return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
+            return _rgb8(im)
     except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError) as e:
         raise MeshError(path, f"cannot read texture image: {e}") from None
+
+
+#: Pillow's modes of one integer channel wider than 8 bits: a 16-bit grey PNG opens as one of
+#: them, and ``convert("RGB")`` would clip its values to 255 (a white texture).
+_WIDE_GREY = ("I;16", "I;16B", "I;16L", "I;16N", "I")
+
+
+def _rgb8(im) -> np.ndarray:
+    """The pixels of a Pillow image as (H, W, 3) uint8 RGB: wide grey scaled from 16 bits
+    (values beyond 0-65535 clipped), floating-point pixels refused (no range to scale from)."""
+    if im.mode in _WIDE_GREY:
+        grey = np.clip(np.asarray(im, dtype=np.float64), 0, 65535) / 257.0
+        return np.repeat(np.rint(grey).astype(np.uint8)[..., None], 3, axis=2)
+    if im.mode == "F":
+        raise ValueError("its pixels are floating-point numbers, which have no range to scale to 8 bits; "
+                         "save it with 8 or 16 bits per channel")
+    return np.asarray(im.convert("RGB"), dtype=np.uint8).copy()
