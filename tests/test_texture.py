@@ -193,6 +193,32 @@ def test_yuv420_conversion_is_bt709_full_range_and_checks_shapes():
         _core.yuv420_to_rgb(np.zeros((4, 4), np.uint16))
 
 
+def test_textures_on_some_frames_only_are_dropped_with_a_warning_naming_the_first_without(
+        tmp_path, textured_sequence, capsys):
+    plain = Mesh(textured_sequence[1].positions, textured_sequence[1].faces)
+    frames = [textured_sequence[0], plain, textured_sequence[2]]
+    with pytest.warns(api.TextureWarning, match=r"frame 1 \(1 of 3 frames\) has no UVs or texture image"):
+        result = api.encode_frames(frames, texture_size=SIZE)
+    assert result.texture_bytes == 0 and result.texture_options is None
+    # On the command line: the same warning, as one line in the command's voice.
+    src = tmp_path / "in"
+    src.mkdir()
+    write_image(src / "skin.png", textured_sequence[0].image)
+    for i, m in enumerate(frames):
+        textured = m.uvs is not None
+        write_mesh(src / f"f{i}.obj", Mesh(m.positions, m.faces, uvs=m.uvs, uv_faces=m.uv_faces,
+                                           texture=src / "skin.png" if textured else None))
+    capsys.readouterr()
+    assert main(["encode", str(src), "-o", str(tmp_path / "s.dmsh"), "--texture-size", str(SIZE), "-q"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert [line for line in err if "warning" in line] == [
+        "dynmesh encode: warning: frame 1 (1 of 3 frames) has no UVs or texture image: the stream carries the geometry "
+        "only (--texture / texture=True refuses such input, --no-texture / texture=False drops the textures without "
+        "this warning)"]
+    assert main(["encode", str(src), "-o", str(tmp_path / "t.dmsh"), "--no-texture", "-q"]) == 0
+    assert "warning" not in capsys.readouterr().err
+
+
 def test_obj_with_texture_round_trips_through_the_command_line(tmp_path, textured_sequence):
     src = tmp_path / "in"
     src.mkdir()

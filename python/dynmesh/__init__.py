@@ -20,6 +20,10 @@ Errors are exception classes by kind (also in ``dynmesh.api``):
 
 Other mistakes (a wrong type, an unreadable file) raise Python's own exceptions (TypeError,
 OSError, ``MeshError`` for a malformed mesh file).
+
+Warnings: ``MeshWarning`` (``dynmesh.io``) when reading repaired or ignored something in a
+mesh file; ``TextureWarning`` when ``encode`` drops the textures of a sequence whose frames
+are not all textured (``texture="auto"``).
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from ._lazy import lazy_names as _lazy_names
 _HOMES = {
     "DEFAULTS": "api", "DecodeError": "api", "EncodeResult": "api", "decode": "api", "encode": "api",
     "encode_frames": "api", "info": "api", "metrics": "api",
-    "InputError": "api", "InternalError": "api", "UnsupportedError": "api",
+    "InputError": "api", "InternalError": "api", "UnsupportedError": "api", "TextureWarning": "api",
     "MeshError": "io", "read_mesh": "io", "write_mesh": "io",
     "Mesh": "mesh",
     "FrameType": "defaults",

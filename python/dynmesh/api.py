@@ -12,6 +12,7 @@ made in Python (of ``texture``, ``jobs``, the frame count) raise plain ValueErro
 from __future__ import annotations
 
 import os
+import warnings
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
@@ -39,6 +40,11 @@ class DecodeError(ValueError):
         self.offset = offset
 
 
+class TextureWarning(UserWarning):
+    """Textures of the input that the stream will not carry: ``texture="auto"`` on a
+    sequence where only some frames have UVs and a texture image codes the geometry only."""
+
+
 def _as_mesh(frame) -> Mesh:
     if isinstance(frame, Mesh):
         return frame
@@ -62,10 +68,20 @@ def sequence_bounds(meshes: Iterable[Mesh]) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _textured(meshes: list[Mesh], option) -> bool:
-    """Whether to code textures: ``option`` True/False, or "auto" (when every frame has
-    UVs and a texture)."""
-    has = [_has_texture(m) for m in meshes]
+    return texture_choice([_has_texture(m) for m in meshes], option)
+
+
+def texture_choice(has: list[bool], option) -> bool:
+    """Whether to code textures, given which frames have UVs and a texture image (``has``):
+    ``option`` True/False, or "auto" (when every frame has them; when only some have, a
+    ``TextureWarning`` names the first frame without, since their textures are dropped).
+    Raises ValueError for True when a frame has none, or for another ``option``."""
     if option == "auto":
+        if any(has) and not all(has):
+            missing = has.count(False)
+            warnings.warn(f"frame {has.index(False)} ({missing} of {len(has)} frames) has no UVs or texture image: "
+                          "the stream carries the geometry only (--texture / texture=True refuses such input, "
+                          "--no-texture / texture=False drops the textures without this warning)", TextureWarning, stacklevel=3)
         return all(has)
     if option is True and not all(has):
         raise ValueError(f"frame {has.index(False)}: texture coding asks for UVs and a texture image on every frame")
@@ -99,7 +115,8 @@ def encode_frames(
     "nns+me+qem" the paper's stages, "nns+me+proj" ours), fold_repair, rigid_align, refresh (ours, all three), rd_slope (dB per rate doubling, for the intra/inter decision), always_try_intra (ours: code each predicted frame intra too before deciding), aq
     (adaptive quantization) with aq_alpha, aq_delta, aq_h.
     Textures (``texture``: "auto" codes them when every frame has UVs and a texture image,
-    in ``Mesh.image`` or at ``Mesh.texture``): texture_size (atlas side in texels; None:
+    in ``Mesh.image`` or at ``Mesh.texture``, and warns, ``TextureWarning``, when only some
+    frames have them): texture_size (atlas side in texels; None:
     about the texel count of the first frame's texture), texture_qp (video QP in HEVC's
     scale; None: follows ``qp``), texture_codec ("hevc" or "av1"); see ``dynmesh.texture``.
     ``jobs`` > 1 encodes the groups of ``intra_period`` frames in that many local processes,

@@ -7,6 +7,7 @@ import contextlib
 import os
 import sys
 import time
+import warnings
 from pathlib import Path
 
 # The API, numpy and the file readers are imported by the commands that use them:
@@ -93,9 +94,7 @@ def cmd_encode(a) -> dict:
     _check_encoder_options(options, len(paths))
     lo, hi, textures, textured = _scan_sequence(a, paths)
     refuse_inputs(a.output, textures)
-    if texture_option is True and not all(textured):
-        raise ValueError(f"frame {textured.index(False)}: texture coding asks for UVs and a texture image on every frame")
-    use_texture = all(textured) if texture_option == "auto" else texture_option
+    use_texture = api.texture_choice(textured, texture_option)
     # With a Ray cluster its CPUs are the workers: no local processes.
     jobs = 1 if a.ray is not None else _encode_jobs(a.jobs, len(paths), options["intra_period"])
     with _progress(a, len(paths), "encoding") as bar:
@@ -582,7 +581,8 @@ def parser() -> argparse.ArgumentParser:
     p.add_argument("--aq-h", type=float, default=d["aq_h"], help=f"AQ valence normalisation h (default {d['aq_h']:g})")
     t = TEXTURE
     p.add_argument("--texture", action=argparse.BooleanOptionalAction, default=None,
-                   help="code the frames' textures (default: when every frame has UVs and a texture image)")
+                   help="code the frames' textures (default: when every frame has UVs and a texture image; "
+                        "a warning when only some have)")
     p.add_argument("--texture-size", type=int, default=t["texture_size"],
                    help="side of the texture atlas in texels (default: about the texel count of the first frame's "
                         "texture, to a multiple of 16: a 1024 x 1024 source gives 1024)")
@@ -731,11 +731,21 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_PIPE_CLOSED
 
 
+def _warning_line(command: str):
+    """Shows a warning (a ``MeshWarning`` of a repaired input file, a ``TextureWarning``) as
+    one line on stderr in the command's voice, not as Python's source location and line."""
+    def show(message, category, filename, lineno, file=None, line=None):
+        print(f"dynmesh {command}: warning: {message}", file=sys.stderr, flush=True)
+    return show
+
+
 def _main(argv: list[str] | None) -> int:
     args = parse(parser(), argv)
     args.failure = None  # set by a command that did its work but must still exit non-zero
     try:
-        result = args.run(args)
+        with warnings.catch_warnings():
+            warnings.showwarning = _warning_line(args.command)
+            result = args.run(args)
     except BrokenPipeError:
         raise
     except _reported_errors() as e:
