@@ -390,7 +390,7 @@ def test_steps_that_hold_the_gil_wait_until_the_caller_is_in_the_geometry_core(t
         time.sleep(0.3)
         assert tex._group is None  # the atlas waits ...
         with tex.geometry():
-            tex._measured.result(timeout=60)  # ... and is made once the caller is away
+            tex._coded.result(timeout=60)  # ... and is made once the caller is away
         assert tex._group is not None
         [(first, unit)] = tex.finish()
         assert first == 0 and texture.unpack_group(unit).frames == 1

@@ -64,6 +64,21 @@ def test_a_group_round_trips_with_its_frame_count_and_shape(codec):
 
 
 @pytest.mark.parametrize("codec", video.CODECS)
+def test_each_picture_is_coded_by_its_own_add_and_its_bytes_recorded(codec):
+    """The encoder's decisions read a group's first pictures' bytes while the group is open:
+    neither codec may hold a picture back for later."""
+    images = group(4, 64)
+    enc = video.VideoEncoder(codec, 30)
+    for k, image in enumerate(images, 1):
+        enc.add(image)
+        assert len(enc.sizes) == k and enc.sizes[-1] > 0
+    data = enc.finish()
+    assert len(enc.sizes) == len(images) and enc.sizes[0] > max(enc.sizes[1:])  # the intra picture
+    assert sum(enc.sizes) <= len(data) < sum(enc.sizes) + 64 + 12 * len(images)  # container headers only
+    assert data == video.encode_video(images, codec, 30)
+
+
+@pytest.mark.parametrize("codec", video.CODECS)
 def test_a_lower_texture_qp_gives_a_higher_psnr_and_more_bytes(codec):
     images = group()
     results = [coded(images, codec, qp) for qp in (42, 32, 22)]

@@ -20,7 +20,7 @@ import bisect
 import contextlib
 import threading
 from concurrent.futures import Future, ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -115,15 +115,6 @@ class _Group:
     uv: np.ndarray
     uv_faces: np.ndarray
     video: video.VideoEncoder
-    estimated: list = field(default_factory=list)  # its first images, while costs are estimated
-    intra_bytes: int | None = None  # its first frame coded alone
-    predicted_bytes: int | None = None  # what its second frame adds to the first
-
-
-#: Video presets of the texture cost estimate: SVT-AV1's start-up dominates a one- or
-#: two-picture encode at preset 6 (0.23 s for a 1024 x 1024 picture), preset 10 takes 0.07 s
-#: and its sizes lie within 3 % (intra) and 20 % (predicted) of preset 6's on liam_textured.
-ESTIMATE_PRESET = {"av1": 10}
 
 #: A predicted video frame's bytes as a share of its group's intra frame, per codec, until
 #: the group's second frame measures it (liam_textured at texture QP 32: AV1 0.03, HEVC 0.14;
@@ -175,7 +166,7 @@ class TextureEncoder:
         self._group: _Group | None = None
         self._worker = ThreadPoolExecutor(1, thread_name_prefix="dynmesh-texture")
         self._queued: list[Future] = []
-        self._measured: Future | None = None  # the last frame's transfer (and measure)
+        self._coded: Future | None = None  # the last frame's picture into its group's video
         self._closed = False
         # Set while the caller needs no GIL: it is in the geometry core or waits for us.
         self._caller_away = threading.Event()
@@ -203,18 +194,20 @@ class TextureEncoder:
         """(bytes, bytes): what the texture of the next frame adds when the frame continues
         the current group, and when it starts a new one (an atlas and an intra video
         frame), for the geometry encoder's decisions (``Encoder.encode_frame``); None
-        before a group has begun or without ``estimate_costs``. Measured on the group's
-        own first two frames, each group apart, so a parallel encode decides as a
-        sequential one does. Waits for the queued frames until both are measured."""
+        before a group has begun or without ``estimate_costs``. Read off the group's own
+        video: the bytes of its first two pictures (``VideoEncoder.sizes``), each group
+        apart, so a parallel encode decides as a sequential one does. Waits for the queued
+        frames until both are coded."""
         if not self._estimate or self._length == 0:
             return None
         if self._settled_cost is not None:
             return self._settled_cost
-        self._wait(until=self._measured)
+        self._wait(until=self._coded)
         g = self._group
-        continued = g.predicted_bytes if g.predicted_bytes is not None else PREDICTED_SHARE[self.codec] * g.intra_bytes
-        cost = float(continued), float(g.intra_bytes + len(g.atlas))
-        if g.predicted_bytes is not None:
+        intra, *predicted = g.video.sizes[:2]
+        continued = predicted[0] if predicted else PREDICTED_SHARE[self.codec] * intra
+        cost = float(continued), float(intra + len(g.atlas))
+        if predicted:
             self._settled_cost = cost
         return cost
 
@@ -229,8 +222,9 @@ class TextureEncoder:
         if starts:
             self._length, self._settled_cost = 0, None
         self._length += 1
-        self._measured = self._worker.submit(self._add, self._frames, starts, base, reconstruction, source)
-        self._queued += [self._measured, self._worker.submit(self._to_video, self._frames, self._measured)]
+        transferred = self._worker.submit(self._add, self._frames, starts, base, reconstruction, source)
+        self._coded = self._worker.submit(self._to_video, self._frames, transferred)
+        self._queued += [transferred, self._coded]
         self._frames += 1
 
     def finish(self) -> list[tuple[int, bytes]]:
@@ -284,8 +278,7 @@ class TextureEncoder:
             self._wait()
 
     def _add(self, index: int, starts: bool, base: Mesh, reconstruction: Mesh, source: Mesh) -> np.ndarray:
-        """The frame's texture in its group's atlas (a new group's atlas made first), its cost
-        measured while the group's first two frames are."""
+        """The frame's texture in its group's atlas (a new group's atlas made first)."""
         try:
             image = image_of(source)
             if starts:
@@ -299,33 +292,17 @@ class TextureEncoder:
                 source.positions, source.faces, source.uvs, source.uv_faces, image, self.size, self.size)
             self.coverage.append(float(covered))
             self.uvs.append((g.uv, g.uv_faces))
-            # Measured before the group's video takes the picture: the next frame's decision
-            # waits for the measure, not for the video encoder's start-up (half a second).
-            if self._estimate and g.predicted_bytes is None:
-                self._measure(g, texture)
             return texture
         except ValueError as e:
             raise with_frame(e, self._first_frame + index) from None
 
     def _to_video(self, index: int, transferred: Future) -> None:
-        """The frame's texture (``_add``'s result) into its group's video: a task of its own,
-        which ``cost`` does not wait for."""
+        """The frame's texture (``_add``'s result) into its group's video."""
         texture = transferred.result()  # its error, already naming the frame, is raised first anyway
         try:
             self._holding_gil(self._group.video.add, texture)
         except ValueError as e:
             raise with_frame(e, self._first_frame + index) from None
-
-    def _measure(self, g: _Group, texture: np.ndarray) -> None:
-        """The group's intra and predicted video bytes, from its first two images."""
-        g.estimated.append(texture)
-        coded = len(self._holding_gil(video.encode_video, g.estimated, self.codec, self.qp,
-                                      preset=ESTIMATE_PRESET.get(self.codec)))
-        if g.intra_bytes is None:
-            g.intra_bytes = coded
-        else:
-            g.predicted_bytes = max(0, coded - g.intra_bytes)
-            g.estimated = []
 
     def _close(self) -> None:
         g, self._group = self._group, None

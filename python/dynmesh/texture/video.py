@@ -68,6 +68,12 @@ CODECS = TEXTURE_CODECS
 #: cores (``bench/bench_texture.py`` measures the presets).
 HEVC_PRESET = "ultrafast"
 
+#: libx265 parameters besides the preset and the QP: no B-frames (low delay), neither lookahead
+#: nor frame threads, so that each picture's packet comes out of the ``add`` that gives it, as
+#: SVT-AV1's do in low delay (the same bytes: at a constant QP the lookahead decides nothing),
+#: and no settings SEI.
+HEVC_PARAMS = "bframes=0:rc-lookahead=0:frame-threads=1:info=0:log-level=error"
+
 #: libsvtav1 preset (0 slowest to 13): 4, about 7 % fewer texture bytes than 6 at the same
 #: luma PSNR for twice the video's encode time (the module's docstring); the texture is most
 #: of a textured stream's bytes, its video a small part of the encode time.
@@ -119,7 +125,7 @@ def _container(codec: str) -> str:
 def _options(codec: str, qp: float, preset) -> dict:
     """The FFmpeg encoder options for one group's video."""
     if codec == "hevc":
-        return {"preset": str(preset or HEVC_PRESET), "x265-params": f"qp={qp}:bframes=0:info=0:log-level=error"}
+        return {"preset": str(preset or HEVC_PRESET), "x265-params": f"qp={qp}:{HEVC_PARAMS}"}
     params = {**AV1_PARAMS, "keyint": AV1_ONE_KEY_FRAME, "crf": f"{av1_crf(qp):g}"}
     return {"preset": str(AV1_PRESET if preset is None else preset),
             "svtav1-params": ":".join(f"{k}={v}" for k, v in params.items())}
@@ -135,16 +141,18 @@ class VideoEncoder:
     """Codes equally sized (H, W, 3) uint8 images (H, W even), given one at a time, as one
     video; ``finish`` returns its bytes (an HEVC Annex B elementary stream, or AV1 in IVF).
 
-    The codec works in its own threads while the caller goes on: each ``add`` hands it a
-    picture and takes whatever packets are ready, so a group's video is mostly coded by the
-    time its last picture arrives. ``qp`` is in HEVC's QP scale for both codecs
-    (``av1_crf``); ``preset`` overrides ``HEVC_PRESET`` or ``AV1_PRESET``."""
+    Each ``add`` codes its picture (low delay, no lookahead: ``AV1_PARAMS``, ``HEVC_PARAMS``),
+    and ``sizes`` then holds the bytes of every picture coded so far, in order. ``qp`` is in
+    HEVC's QP scale for both codecs (``av1_crf``); ``preset`` overrides ``HEVC_PRESET`` or
+    ``AV1_PRESET``."""
 
     def __init__(self, codec: str = "hevc", qp: int = 32, *, preset=None):
         if codec not in CODECS:
             raise ValueError(f"unknown texture codec {codec!r} (expected {' or '.join(CODECS)})")
         self.codec, self.qp, self.preset = codec, qp, preset
         self.frames = 0
+        #: Bytes of each picture's packet, in order, as they come out of the codec.
+        self.sizes: list[int] = []
         self._buf = io.BytesIO()
         self._out = self._stream = None
 
@@ -156,18 +164,21 @@ class VideoEncoder:
         frame = av.VideoFrame.from_ndarray(_core.rgb_to_yuv420(image), format="yuv420p10le")
         frame.pts = self.frames
         self.frames += 1
-        for packet in self._stream.encode(frame):
-            self._out.mux(packet)
+        self._mux(self._stream.encode(frame))
 
     def finish(self) -> bytes:
         """The video's bytes; the encoder takes no more images."""
         if self._stream is None:
             raise ValueError("a video needs at least one image")
-        for packet in self._stream.encode():
-            self._out.mux(packet)
+        self._mux(self._stream.encode())
         self._out.close()
         self._stream = None
         return self._buf.getvalue()
+
+    def _mux(self, packets) -> None:
+        for packet in packets:
+            self.sizes.append(packet.size)
+            self._out.mux(packet)
 
     def _open(self, h: int, w: int) -> None:
         import av  # here, not at module level: PyAV takes a third of a second to import
