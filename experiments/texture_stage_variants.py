@@ -7,6 +7,8 @@ the first, at total rate and at texture rate. Variants, joined with ``+``:
 
 - ``default``: the encoder's texture stage as it is;
 - ``ss``: supersampled transfer (the atlas transferred at twice its side, then 2 x 2 box-averaged);
+- ``blurS``, ``cblurS``: the transferred (padded) atlas blurred by a Gaussian of S texels,
+  all of it or its chroma only;
 - ``fullpack``: xatlas packing on the atlas's full resolution instead of half;
 - ``pN``: SVT-AV1 preset N;
 - ``sN``: an atlas of side N;
@@ -40,10 +42,41 @@ def supersampled_transfer(transfer, k: int = 2):
     return run
 
 
+def blurred_transfer(transfer, sigma: float):
+    """The transfer, then a Gaussian blur of ``sigma`` texels over the whole padded image."""
+    from scipy.ndimage import gaussian_filter
+
+    def run(*args):
+        t, covered = transfer(*args)
+        t = gaussian_filter(t.astype(np.float32), sigma=(sigma, sigma, 0), mode="nearest")
+        return np.clip(np.rint(t), 0, 255).astype(np.uint8), covered
+    return run
+
+
+def chroma_blurred_transfer(transfer, sigma: float):
+    """The transfer, then a Gaussian blur of ``sigma`` texels of its BT.709 chroma only."""
+    from scipy.ndimage import gaussian_filter
+
+    m = np.array([[0.2126, 0.7152, 0.0722], [-0.1146, -0.3854, 0.5], [0.5, -0.4542, -0.0458]])
+
+    def run(*args):
+        t, covered = transfer(*args)
+        ycc = t.astype(np.float64) @ m.T
+        for k in (1, 2):
+            ycc[..., k] = gaussian_filter(ycc[..., k], sigma=sigma, mode="nearest")
+        return np.clip(np.rint(ycc @ np.linalg.inv(m).T), 0, 255).astype(np.uint8), covered
+    return run
+
+
 def configure(variant: str, size: int, originals: dict) -> int:
     """Sets the texture stage up for ``variant``; returns its atlas side."""
     tokens = variant.split("+")
     coder._core.transfer_texture = supersampled_transfer(originals["transfer"]) if "ss" in tokens else originals["transfer"]
+    for t in tokens:
+        if t.startswith("blur"):
+            coder._core.transfer_texture = blurred_transfer(coder._core.transfer_texture, float(t[4:]))
+        elif t.startswith("cblur"):
+            coder._core.transfer_texture = chroma_blurred_transfer(coder._core.transfer_texture, float(t[5:]))
 
     def full(side):
         pack = originals["pack"](side)
