@@ -1,6 +1,7 @@
 """Inter coding: rigid motion (the gears of dynmesh.synth.gears, resampled every frame) and reference choice."""
 
 import numpy as np
+import pytest
 
 import dynmesh
 import dynmesh.defaults
@@ -115,6 +116,21 @@ def test_a_part_no_reference_covers_is_refreshed_inside_a_predicted_frame():
     off = dynmesh.encode_frames(frames, refresh=False, **options)
     assert off.frames[1]["type"] == "I" and all(f["refreshed_faces"] == 0 for f in off.frames)
     assert r.frames[1]["bytes"] < off.frames[1]["bytes"]
+
+
+def test_intra_check_codes_predicted_frames_intra_too_when_they_stray_from_the_last_intra():
+    # A threshold below any loss sends every predicted frame through the intra check (each
+    # then reports the candidate it rejected); an infinite one, none beyond the shortcut.
+    frames = gear_sequence(5, turn_degrees=5.0, samples=600)
+    never = dynmesh.encode_frames(frames, intra_check_db=float("inf"))
+    assert any(f["rejected_bytes"] == 0 for f in never.frames if f["type"] == "P")
+    checked = dynmesh.encode_frames(frames, keep_reconstructions=True, intra_check_db=-100.0)
+    predicted = [f for f in checked.frames if f["type"] == "P"]
+    assert predicted and all(f["rejected_bytes"] > 0 for f in predicted)
+    for r, d in zip(checked.reconstructions, dynmesh.decode(checked.data)):
+        assert np.array_equal(r.positions, d.positions) and np.array_equal(r.faces, d.faces)
+    with pytest.raises(ValueError, match="intra check"):
+        dynmesh.encode_frames(frames, intra_check_db=float("nan"))
 
 
 def test_always_try_intra_codes_every_predicted_frame_intra_too_and_decodes_bit_exactly():

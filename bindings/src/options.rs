@@ -80,6 +80,7 @@ const OPTIONS: &[Opt] = &[
     field!("references", config.search.references),
     field!("intra_reference", config.search.intra_reference),
     field!("always_try_intra", config.search.always_try_intra),
+    field!("intra_check_db", config.search.intra_check_db),
     named!("lifting", config.format.lifting, |l: &LiftingChoice| l.name(), lifting_of),
     field!("aq", aq_on),
     field!("aq_alpha", aq.alpha),

@@ -117,6 +117,10 @@ pub struct SearchParams {
     /// without coding this frame intra, which spares most frames a second encoding but keeps
     /// some that their own intra frame or refresh would beat.
     pub always_try_intra: bool,
+    /// ... and, without it, code a frame predicted through the anchor intra too (and try its
+    /// refresh) when its estimated distortion lies more than this many dB above the last
+    /// intra frame's, even though its rate beats that frame's (ours; infinite: never).
+    pub intra_check_db: f64,
 }
 
 impl Default for FormatParams {
@@ -149,6 +153,7 @@ impl Default for SearchParams {
             references: 1,
             intra_reference: true,
             always_try_intra: false,
+            intra_check_db: 2.0,
         }
     }
 }
@@ -183,6 +188,9 @@ impl EncoderConfig {
         }
         if !(1..=MAX_REFERENCES).contains(&self.search.references) {
             return err(format!("references {} is out of range: it must be from 1 to {MAX_REFERENCES}", self.search.references));
+        }
+        if self.search.intra_check_db.is_nan() {
+            return err("intra check dB must be a number (inf: never)".to_string());
         }
         if !(self.search.rd_slope_db.is_finite() && self.search.rd_slope_db >= 0.0) {
             return err(format!("rd slope {} must be finite and non-negative", self.search.rd_slope_db));

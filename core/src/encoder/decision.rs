@@ -7,7 +7,7 @@ use crate::geom::bvh::Bvh;
 use crate::geom::mesh::Mesh;
 use crate::stream::bitstream::FrameType;
 
-use super::{Candidate, Chosen, SequenceEncoder, TextureCost};
+use super::{Candidate, Chosen, Motion, SequenceEncoder, TextureCost};
 
 impl SequenceEncoder {
     /// The candidate to keep, and the bytes of the other one if it was coded (else 0).
@@ -16,7 +16,9 @@ impl SequenceEncoder {
     /// PSNR margin whatever the rates; here the PSNR the predicted frame loses is weighed
     /// against the rate it saves, at the exchange rate `rd_slope_db`. The predicted frame is
     /// first held against the last intra frame's (rate, distortion); only when it loses
-    /// there (or always, with `always_try_intra`) is this frame also coded intra, and the
+    /// there, or it was predicted through the anchor and its distortion lies more than
+    /// `intra_check_db` above that frame's (or always, with `always_try_intra`), is this
+    /// frame also coded intra, and the
     /// predicted frame with its worst-fitting regions refreshed from the intra candidate's
     /// base ([`Self::refreshed`]) tried in its place when it costs less; the shortcut spares
     /// most predicted frames a second encoding.
@@ -40,8 +42,12 @@ impl SequenceEncoder {
             self.last_intra = measured.then_some((i.candidate.payload.len(), i.candidate.distortion));
             return Ok((i, 0));
         };
-        if let Some((bytes, di)) = self.last_intra.filter(|_| !self.config.search.always_try_intra) {
-            if self.rd_prefers(self.frame_bytes(&p, texture), p.candidate.distortion, bytes + texture_bytes(texture, true), di) {
+        let search = &self.config.search;
+        if let Some((bytes, di)) = self.last_intra.filter(|_| !search.always_try_intra) {
+            // The check pays through the refresh, which only anchored frames have.
+            let anchored = matches!(p.motion, Some(Motion::Anchor(_)));
+            let near_intra = !anchored || loss_db(p.candidate.distortion, di) <= search.intra_check_db;
+            if near_intra && self.rd_prefers(self.frame_bytes(&p, texture), p.candidate.distortion, bytes + texture_bytes(texture, true), di) {
                 return Ok((p, 0));
             }
         }
@@ -82,9 +88,8 @@ impl SequenceEncoder {
     /// True when a predicted frame of `p_bytes` and distortion `dp` beats an intra frame of
     /// `i_bytes` and `di`: its PSNR loss is at most `rd_slope_db` per halving of the rate.
     pub(super) fn rd_prefers(&self, p_bytes: usize, dp: f64, i_bytes: usize, di: f64) -> bool {
-        let loss_db = 10.0 * (dp.max(f64::MIN_POSITIVE) / di.max(f64::MIN_POSITIVE)).log10();
         let rate_saving = (i_bytes as f64 / p_bytes as f64).log2();
-        loss_db <= self.config.search.rd_slope_db * rate_saving
+        loss_db(dp, di) <= self.config.search.rd_slope_db * rate_saving
     }
 
     /// The positions of a reconstruction (in the input's units) in grid units.
@@ -104,6 +109,11 @@ impl SequenceEncoder {
         let backward = Bvh::new(&rec, &reconstruction.faces).mean_squared_distance(&input.positions, &input.faces);
         forward.max(backward)
     }
+}
+
+/// How many dB worse distortion `dp` is than `di`.
+fn loss_db(dp: f64, di: f64) -> f64 {
+    10.0 * (dp.max(f64::MIN_POSITIVE) / di.max(f64::MIN_POSITIVE)).log10()
 }
 
 /// What the texture of a frame that continues (or restarts) its texture group costs.
