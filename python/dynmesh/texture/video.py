@@ -70,8 +70,8 @@ HEVC_PRESET = "ultrafast"
 
 #: libx265 parameters besides the preset and the QP: no B-frames (low delay), neither lookahead
 #: nor frame threads, so that each picture's packet comes out of the ``add`` that gives it, as
-#: SVT-AV1's do in low delay (the same bytes: at a constant QP the lookahead decides nothing),
-#: and no settings SEI.
+#: SVT-AV1's do in low delay (at a constant QP the lookahead decides nothing: the same bytes
+#: on liam_textured's atlases), and no settings SEI.
 HEVC_PARAMS = "bframes=0:rc-lookahead=0:frame-threads=1:info=0:log-level=error"
 
 #: libsvtav1 preset (0 slowest to 13): 4, about 7 % fewer texture bytes than 6 at the same
