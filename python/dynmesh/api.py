@@ -112,7 +112,7 @@ def encode_frames(
     with one per iteration), bits (position grid), base_bits (base mesh positions, at most bits),
     base_ratio None follows the QP,
     normal_only, intra_period (1 = every frame intra), inter ("none", "nns", "nns+me",
-    "nns+me+qem" the paper's stages, "nns+me+proj" ours), fold_repair, rigid_align, refresh (ours, all three), rd_slope (dB per rate doubling, for the intra/inter decision), intra_check_db (ours: a frame predicted through the anchor whose distortion lies this many dB above the last intra frame's is coded intra too, and its refresh tried, before deciding), always_try_intra (ours: every predicted frame is), aq
+    "nns+me+qem" the paper's stages, "nns+me+proj" ours), fold_repair, rigid_align, refresh (ours, all three), rd_slope (dB per rate doubling, for the intra/inter decision), intra_check_db (ours: a frame predicted through the anchor whose distortion lies this many dB above the last (or the group's best) intra frame's is coded intra too, and its refresh tried, before deciding), always_try_intra (ours: every predicted frame is), aq
     (adaptive quantization) with aq_alpha, aq_delta, aq_h.
     Textures (``texture``: "auto" codes them when every frame has UVs and a texture image,
     in ``Mesh.image`` or at ``Mesh.texture``, and warns, ``TextureWarning``, when only some

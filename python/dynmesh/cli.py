@@ -571,10 +571,10 @@ def parser() -> argparse.ArgumentParser:
                         "default, for 1.1-1.9x its encode time (ours; default: %(default)s)")
     p.add_argument("--intra-check-db", type=float, default=d["intra_check_db"], metavar="DB",
                    help="intra/inter decision: a frame predicted through the anchor whose estimated distortion lies "
-                        "more than DB above the last intra frame's is also coded intra, and its refresh tried, before "
-                        "choosing, even when its rate beats that frame's; at 2, 4-7 %% fewer bytes at the same D1 on mitch "
-                        "and thomas than inf (never), none on dancer, for 1.1-1.3x the encode time (ours; default "
-                        "%(default)g)")
+                        "more than DB above the last (or the group's best) intra frame's is also coded intra, and its "
+                        "refresh tried, before choosing, even when its rate beats the last intra frame's; at 2, 4-7 %% "
+                        "fewer bytes at the same D1 on mitch and thomas than inf (never), none on dancer, for 1.1-1.3x "
+                        "the encode time (ours; default %(default)g)")
     p.add_argument("--rd-slope", type=float, default=d["rd_slope"],
                    help="intra/inter decision: dB of PSNR a predicted frame may lose per halving of its rate against "
                         f"intra (default {d['rd_slope']:g})")

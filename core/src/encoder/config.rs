@@ -119,7 +119,9 @@ pub struct SearchParams {
     pub always_try_intra: bool,
     /// ... and, without it, code a frame predicted through the anchor intra too (and try its
     /// refresh) when its estimated distortion lies more than this many dB above the last
-    /// intra frame's, even though its rate beats that frame's (ours; infinite: never).
+    /// intra frame's, or above the lowest of the group's frames coded intra (one hard frame
+    /// coded intra must not make the next ones look good), even though its rate beats the
+    /// last intra frame's (ours; infinite: never).
     pub intra_check_db: f64,
 }
 

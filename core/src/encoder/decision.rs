@@ -17,7 +17,8 @@ impl SequenceEncoder {
     /// against the rate it saves, at the exchange rate `rd_slope_db`. The predicted frame is
     /// first held against the last intra frame's (rate, distortion); only when it loses
     /// there, or it was predicted through the anchor and its distortion lies more than
-    /// `intra_check_db` above that frame's (or always, with `always_try_intra`), is this
+    /// `intra_check_db` above that frame's or the group's best intra frame's (or always,
+    /// with `always_try_intra`), is this
     /// frame also coded intra, and the
     /// predicted frame with its worst-fitting regions refreshed from the intra candidate's
     /// base ([`Self::refreshed`]) tried in its place when it costs less; the shortcut spares
@@ -40,19 +41,21 @@ impl SequenceEncoder {
         let Some(p) = predicted else {
             let i = intra(self)?;
             self.last_intra = measured.then_some((i.candidate.payload.len(), i.candidate.distortion));
+            self.best_intra = self.best_intra.min(i.candidate.distortion);
             return Ok((i, 0));
         };
         let search = &self.config.search;
         if let Some((bytes, di)) = self.last_intra.filter(|_| !search.always_try_intra) {
             // The check pays through the refresh, which only anchored frames have.
             let anchored = matches!(p.motion, Some(Motion::Anchor(_)));
-            let near_intra = !anchored || loss_db(p.candidate.distortion, di) <= search.intra_check_db;
+            let near_intra = !anchored || loss_db(p.candidate.distortion, di.min(self.best_intra)) <= search.intra_check_db;
             if near_intra && self.rd_prefers(self.frame_bytes(&p, texture), p.candidate.distortion, bytes + texture_bytes(texture, true), di) {
                 return Ok((p, 0));
             }
         }
         let i = intra(self)?;
         self.last_intra = Some((i.candidate.payload.len(), i.candidate.distortion));
+        self.best_intra = self.best_intra.min(i.candidate.distortion);
         let prefers =
             |s: &Self, a: &Chosen, b: &Chosen| s.rd_prefers(s.frame_bytes(a, texture), a.candidate.distortion, s.frame_bytes(b, texture), b.candidate.distortion);
         let rejected = |c: &Chosen| c.candidate.payload.len();

@@ -152,6 +152,9 @@ pub struct SequenceEncoder {
     references: Vec<Stored>,
     /// Payload bytes and estimated distortion of the last frame coded intra.
     last_intra: Option<(usize, f64)>,
+    /// The lowest estimated distortion of the group's frames coded intra (infinite before
+    /// the first).
+    best_intra: f64,
 }
 
 /// The bytes a textured frame's texture adds, which the frame type decides: a frame whose
@@ -181,7 +184,7 @@ impl SequenceEncoder {
         if !min.iter().chain(&max).all(|c| c.is_finite()) {
             return Err(InputError("bounding box must be finite".into()));
         }
-        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, references: Vec::new(), last_intra: None })
+        Ok(Self { header: config.header(frame_count, min, max), config, frame: 0, references: Vec::new(), last_intra: None, best_intra: f64::INFINITY })
     }
 
     pub fn header(&self) -> &SequenceHeader {
@@ -209,6 +212,7 @@ impl SequenceEncoder {
         self.frame = index;
         self.references.clear();
         self.last_intra = None;
+        self.best_intra = f64::INFINITY;
         Ok(())
     }
 
