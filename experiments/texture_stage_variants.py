@@ -42,29 +42,21 @@ def supersampled_transfer(transfer, k: int = 2):
     return run
 
 
-def blurred_transfer(transfer, sigma: float):
-    """The transfer, then a Gaussian blur of ``sigma`` texels over the whole padded image."""
+#: RGB -> BT.709 Y, Cb, Cr (full range, as the video's conversion).
+BT709 = np.array([[0.2126, 0.7152, 0.0722], [-0.1146, -0.3854, 0.5], [0.5, -0.4542, -0.0458]])
+
+
+def blurred_transfer(transfer, sigma: float, planes=(0, 1, 2)):
+    """The transfer, then a Gaussian blur of ``sigma`` texels over the whole padded image, of
+    its BT.709 ``planes`` (0 = Y, 1 = Cb, 2 = Cr; all three blur the image itself)."""
     from scipy.ndimage import gaussian_filter
 
     def run(*args):
         t, covered = transfer(*args)
-        t = gaussian_filter(t.astype(np.float32), sigma=(sigma, sigma, 0), mode="nearest")
-        return np.clip(np.rint(t), 0, 255).astype(np.uint8), covered
-    return run
-
-
-def chroma_blurred_transfer(transfer, sigma: float):
-    """The transfer, then a Gaussian blur of ``sigma`` texels of its BT.709 chroma only."""
-    from scipy.ndimage import gaussian_filter
-
-    m = np.array([[0.2126, 0.7152, 0.0722], [-0.1146, -0.3854, 0.5], [0.5, -0.4542, -0.0458]])
-
-    def run(*args):
-        t, covered = transfer(*args)
-        ycc = t.astype(np.float64) @ m.T
-        for k in (1, 2):
+        ycc = t.astype(np.float64) @ BT709.T
+        for k in planes:
             ycc[..., k] = gaussian_filter(ycc[..., k], sigma=sigma, mode="nearest")
-        return np.clip(np.rint(ycc @ np.linalg.inv(m).T), 0, 255).astype(np.uint8), covered
+        return np.clip(np.rint(ycc @ np.linalg.inv(BT709).T), 0, 255).astype(np.uint8), covered
     return run
 
 
@@ -76,7 +68,7 @@ def configure(variant: str, size: int, originals: dict) -> int:
         if t.startswith("blur"):
             coder._core.transfer_texture = blurred_transfer(coder._core.transfer_texture, float(t[4:]))
         elif t.startswith("cblur"):
-            coder._core.transfer_texture = chroma_blurred_transfer(coder._core.transfer_texture, float(t[5:]))
+            coder._core.transfer_texture = blurred_transfer(coder._core.transfer_texture, float(t[5:]), (1, 2))
 
     def full(side):
         pack = originals["pack"](side)

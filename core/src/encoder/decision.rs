@@ -48,7 +48,7 @@ impl SequenceEncoder {
         if let Some((bytes, di)) = self.last_intra.filter(|_| !search.always_try_intra) {
             // The check pays through the refresh, which only anchored frames have.
             let anchored = matches!(p.motion, Some(Motion::Anchor(_)));
-            let near_intra = !anchored || loss_db(p.candidate.distortion, di.min(self.best_intra)) <= search.intra_check_db;
+            let near_intra = !anchored || loss_db(p.candidate.distortion, self.best_intra) <= search.intra_check_db;
             if near_intra && self.rd_prefers(self.frame_bytes(&p, texture), p.candidate.distortion, bytes + texture_bytes(texture, true), di) {
                 return Ok((p, 0));
             }
